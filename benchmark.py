@@ -1,0 +1,359 @@
+"""Multi-seed sweeps of the project's scripts that survive sessions; results tables and learning curves.
+
+    python benchmark.py --scripts rile.py gail.py --env-ids Hopper-v4 --seeds 1 2 3 --total-timesteps 200000
+    python benchmark.py --status            # which jobs are done, running, interrupted or waiting
+    python benchmark.py --report            # tables, learning curves, and the README's results section
+    python benchmark.py ... --launcher slurm --partition gpu --time 720 --cpus 4 --gpus 1
+
+Each job (script x env x seed) runs as its own process, `python <script> --env-id E --seed S
+--total-timesteps T --run-name bench__<E>__<algo>__<S> <extra args>`, writing to runs/<run-name>/.
+A job whose results file exists is skipped; a job with a checkpoint but no result is resumed
+(`--resume runs/<run-name>`), so a sweep spread over several sessions simply continues: run the same
+command again. Arguments that benchmark.py does not know pass through to the scripts; give such a
+variant its own `--tag` so that its results do not collide with the default's.
+
+Results: each finished run's results.json (the format every script writes, see README) is copied to
+benchmarks/results/<env-id>/<algo>__<seed>.json, with the command that produced it.
+"""
+
+import argparse
+import json
+import math
+import os
+import subprocess
+import sys
+import time
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from typing import List, Optional
+
+import numpy as np
+
+ROOT = os.path.dirname(os.path.abspath(__file__))
+RESULTS_DIR = os.path.join(ROOT, "benchmarks", "results")
+RUNS_DIR = "runs"  # relative to the working directory, as the scripts write it
+README_START, README_END = "<!-- benchmark:start -->", "<!-- benchmark:end -->"
+
+# The RILe paper's MuJoCo table (v2 envs, 25 demonstrations, mean +- s.e.), by env and script.
+PAPER = {
+    "Humanoid": {"rile": 5928, "gail": 5709, "airl": 5623, "iqlearn": 327, "drail_disc": 5755},
+    "Walker2d": {"rile": 4435, "gail": 4906, "airl": 4823, "iqlearn": 270, "drail_disc": 4016},
+    "Hopper": {"rile": 3417, "gail": 3361, "airl": 3014, "iqlearn": 310, "drail_disc": 1230},
+    "HalfCheetah": {"rile": 5205, "gail": 4173, "airl": 3991, "iqlearn": 755, "drail_disc": 4133},
+}
+
+
+@dataclass
+class Job:
+    script: str
+    env_id: str
+    seed: int
+    total_timesteps: int
+    extra: List[str]
+    tag: str = ""
+
+    @property
+    def algo(self) -> str:
+        stem = os.path.splitext(os.path.basename(self.script))[0]
+        return f"{stem}-{self.tag}" if self.tag else stem
+
+    @property
+    def run_name(self) -> str:
+        return f"bench__{self.env_id}__{self.algo}__{self.seed}"
+
+    @property
+    def run_dir(self) -> str:
+        return os.path.join(RUNS_DIR, self.run_name)
+
+    def result_path(self, results_dir: str = RESULTS_DIR) -> str:
+        return os.path.join(results_dir, self.env_id, f"{self.algo}__{self.seed}.json")
+
+    def command(self) -> List[str]:
+        cmd = [sys.executable, os.path.join(ROOT, self.script), "--env-id", self.env_id, "--seed", str(self.seed),
+               "--total-timesteps", str(self.total_timesteps), "--run-name", self.run_name, *self.extra]
+        if os.path.basename(self.script) == "expert.py":
+            cmd.append("--no-record-demos")  # a benchmark run must not overwrite the shipped experts/
+        if os.path.exists(os.path.join(self.run_dir, "checkpoint.pt")):
+            cmd += ["--resume", self.run_dir]
+        return cmd
+
+
+def job_state(job: Job, results_dir: str = RESULTS_DIR) -> str:
+    if os.path.exists(job.result_path(results_dir)):
+        return "done"
+    lock = os.path.join(job.run_dir, "benchmark.lock")
+    if os.path.exists(lock):
+        try:
+            os.kill(int(open(lock).read().split()[0]), 0)
+            return "running"
+        except (OSError, ValueError):
+            pass  # its process is gone: the job was interrupted
+    if os.path.exists(os.path.join(job.run_dir, "checkpoint.pt")):
+        return "interrupted"
+    return "waiting"
+
+
+def last_eval(job: Job) -> str:
+    evals = (read_run_results(job) or {}).get("evals")
+    return f"step {evals[-1]['step']}: {evals[-1]['mean']:.1f}" if evals else "-"
+
+
+def read_run_results(job: Job) -> Optional[dict]:
+    try:
+        with open(os.path.join(job.run_dir, "results.json")) as f:
+            return json.load(f)
+    except (OSError, ValueError):
+        return None
+
+
+def run_job(job: Job, results_dir: str = RESULTS_DIR) -> str:
+    """Run (or resume) one job to the end and copy its results file. Returns a one-line outcome.
+    A module-level function, so that submitit can ship it to a cluster node."""
+    if job_state(job, results_dir) == "done":
+        return f"{job.run_name}: already done"
+    results = read_run_results(job)
+    if results and results.get("finished") and results["config"].get("total_timesteps") == job.total_timesteps:
+        return collect(job, results, job.command(), results_dir)  # finished, but its result was never copied
+    os.makedirs(job.run_dir, exist_ok=True)
+    lock = os.path.join(job.run_dir, "benchmark.lock")
+    with open(lock, "w") as f:
+        f.write(f"{os.getpid()} {os.uname().nodename}\n")
+    cmd = job.command()
+    try:
+        with open(job.run_dir + ".log", "a") as log:
+            log.write(f"\n$ {' '.join(cmd)}\n")
+            log.flush()
+            rc = subprocess.run(cmd, stdout=log, stderr=subprocess.STDOUT).returncode
+    finally:
+        os.remove(lock)
+    if rc != 0:
+        return f"{job.run_name}: exit code {rc} (log: {job.run_dir}.log); run the sweep again to resume it"
+    results = read_run_results(job)
+    if not results or not results.get("finished"):
+        return f"{job.run_name}: stopped before the end; run the sweep again to resume it"
+    return collect(job, results, cmd, results_dir)
+
+
+def collect(job: Job, results: dict, cmd: List[str], results_dir: str) -> str:
+    results["command"] = " ".join(["python", job.script] + cmd[2:])
+    os.makedirs(os.path.dirname(job.result_path(results_dir)), exist_ok=True)
+    with open(job.result_path(results_dir) + ".tmp", "w") as f:
+        json.dump(results, f, indent=1)
+    os.replace(job.result_path(results_dir) + ".tmp", job.result_path(results_dir))
+    return f"{job.run_name}: done, final return {results['final_return']:.1f}"
+
+
+def print_status(jobs: List[Job], results_dir: str = RESULTS_DIR) -> None:
+    states = [job_state(j, results_dir) for j in jobs]
+    print(f"{len(jobs)} jobs: " + ", ".join(f"{states.count(s)} {s}" for s in ("done", "running", "interrupted", "waiting")))
+    for job, state in zip(jobs, states):
+        print(f"  {state:<11} {job.run_name:<50} {last_eval(job)}")
+
+
+def run_sweep(jobs: List[Job], args) -> List[str]:
+    todo = [j for j in jobs if job_state(j, args.results_dir) != "done"]
+    print(f"{len(jobs) - len(todo)} of {len(jobs)} jobs already done; running {len(todo)}", flush=True)
+    if args.launcher == "local":
+        with ThreadPoolExecutor(args.workers) as pool:
+            outcomes = []
+            for outcome in pool.map(lambda j: run_job(j, args.results_dir), todo):
+                print(outcome, flush=True)
+                outcomes.append(outcome)
+        return outcomes
+    import cloudpickle
+    import submitit  # only for --launcher slurm / submitit-local
+
+    if __name__ != "__main__":  # ship this module's code with the jobs, the node need not import it
+        cloudpickle.register_pickle_by_value(sys.modules[__name__])
+    folder = os.path.join(RUNS_DIR, "submitit")
+    if args.launcher == "slurm":
+        executor = submitit.AutoExecutor(folder=folder, cluster="slurm")
+        executor.update_parameters(timeout_min=args.time, slurm_partition=args.partition, cpus_per_task=args.cpus,
+                                   gpus_per_node=args.gpus, name="rile-benchmark")
+    else:  # submitit's local executor: the same code path as Slurm, on this machine (used by the tests)
+        executor = submitit.LocalExecutor(folder=folder)
+        executor.update_parameters(timeout_min=args.time)
+    submitted = [executor.submit(run_job, job, args.results_dir) for job in todo]
+    print(f"submitted {len(submitted)} jobs ({', '.join(s.job_id for s in submitted)}); logs in {folder}", flush=True)
+    if not args.wait:
+        return []
+    outcomes = [s.result() for s in submitted]
+    for outcome in outcomes:
+        print(outcome)
+    return outcomes
+
+
+# ---------------------------------------------------------------- report
+
+
+def mean_se(values) -> tuple:
+    x = np.asarray(values, dtype=np.float64)
+    return float(x.mean()), float(x.std(ddof=1) / math.sqrt(len(x))) if len(x) > 1 else float("nan")
+
+
+def iqm(values) -> float:
+    """Interquartile mean: the mean of the middle 50% (scipy.stats.trim_mean(x, 0.25))."""
+    x = np.sort(np.asarray(values, dtype=np.float64))
+    cut = int(0.25 * len(x))
+    return float(x[cut : len(x) - cut].mean())
+
+
+def bootstrap_ci(values, stat=iqm, num_samples: int = 2000, confidence: float = 0.95, seed: int = 0) -> tuple:
+    """Percentile bootstrap over seeds (fixed RNG seed: the report is reproducible)."""
+    x = np.asarray(values, dtype=np.float64)
+    rng = np.random.default_rng(seed)
+    stats = [stat(x[rng.integers(0, len(x), len(x))]) for _ in range(num_samples)]
+    return float(np.quantile(stats, (1 - confidence) / 2)), float(np.quantile(stats, (1 + confidence) / 2))
+
+
+REQUIRED = ("algo", "env_id", "seed", "evals", "final_return", "expert_return", "wall_time_s", "config")
+
+
+def load_results(results_dir: str = RESULTS_DIR):
+    """All results files, grouped {env_id: {algo: [results]}}, and the files that could not be used."""
+    grouped, bad = {}, []
+    for env_id in sorted(os.listdir(results_dir)) if os.path.isdir(results_dir) else []:
+        env_dir = os.path.join(results_dir, env_id)
+        if not os.path.isdir(env_dir):
+            continue
+        for name in sorted(os.listdir(env_dir)):
+            if not name.endswith(".json"):
+                continue
+            path = os.path.join(env_dir, name)
+            try:
+                with open(path) as f:
+                    r = json.load(f)
+                missing = [k for k in REQUIRED if k not in r]
+                if missing:
+                    raise ValueError(f"missing {missing}")
+                if not r["evals"]:
+                    raise ValueError("no evaluations")
+            except (OSError, ValueError) as e:
+                bad.append(f"{os.path.relpath(path, results_dir)}: {e}")
+                continue
+            algo = name.rsplit("__", 1)[0]
+            grouped.setdefault(env_id, {}).setdefault(algo, []).append(r)
+    return grouped, bad
+
+
+def summarize(runs: list) -> dict:
+    finals = [r["final_return"] for r in runs]
+    normalized = [r["final_return"] / r["expert_return"] for r in runs if r.get("expert_return")]
+    score = normalized if len(normalized) == len(runs) else finals
+    lo, hi = bootstrap_ci(score)
+    return {"n": len(runs), "return": mean_se(finals), "normalized": mean_se(normalized) if normalized else None,
+            "iqm": iqm(score), "iqm_ci": (lo, hi), "iqm_of": "normalized" if score is normalized else "return",
+            "steps": max(r["evals"][-1]["step"] for r in runs), "wall_h": float(np.mean([r["wall_time_s"] for r in runs])) / 3600,
+            "seeds": sorted(r["seed"] for r in runs)}
+
+
+def fmt(pair, digits=1) -> str:
+    m, se = pair
+    return f"{m:.{digits}f}" if math.isnan(se) else f"{m:.{digits}f} ± {se:.{digits}f}"
+
+
+def env_table(env_id: str, algos: dict) -> str:
+    paper = PAPER.get(env_id.split("-")[0], {})
+    lines = ["| algorithm | seeds | final return | normalized | IQM [95% CI] | steps | wall time (h) | paper (v2) |",
+             "|---|---|---|---|---|---|---|---|"]
+    for algo, runs in sorted(algos.items()):
+        s = summarize(runs)
+        norm = fmt(s["normalized"], 3) if s["normalized"] else "-"
+        digits = 3 if s["iqm_of"] == "normalized" else 1
+        lines.append(f"| {algo} | {s['n']} | {fmt(s['return'])} | {norm} | {s['iqm']:.{digits}f} "
+                     f"[{s['iqm_ci'][0]:.{digits}f}, {s['iqm_ci'][1]:.{digits}f}] | {s['steps']} | {s['wall_h']:.2f} | "
+                     f"{paper.get(algo.split('-')[0], '-')} |")
+    return "\n".join(lines)
+
+
+def plot_env(env_id: str, algos: dict, path: str) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6, 4))
+    for algo, runs in sorted(algos.items()):
+        steps = sorted(set.intersection(*[{e["step"] for e in r["evals"]} for r in runs]))  # steps every seed has
+        curves = np.array([[{e["step"]: e["mean"] for e in r["evals"]}[s] for s in steps] for r in runs])
+        mean = curves.mean(0)
+        ax.plot(steps, mean, label=f"{algo} ({len(runs)} seeds)")
+        if len(runs) > 1:
+            se = curves.std(0, ddof=1) / math.sqrt(len(runs))
+            ax.fill_between(steps, mean - se, mean + se, alpha=0.25)
+    expert = [r["expert_return"] for runs in algos.values() for r in runs if r.get("expert_return")]
+    if expert:
+        ax.axhline(np.mean(expert), color="k", ls="--", lw=1, label="expert")
+    ax.set(title=env_id, xlabel="env steps", ylabel="evaluation return (mean ± s.e. over seeds)")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+def report(results_dir: str = RESULTS_DIR, readme: Optional[str] = os.path.join(ROOT, "README.md")) -> str:
+    grouped, bad = load_results(results_dir)
+    parts = []
+    for env_id, algos in grouped.items():
+        png = os.path.join(results_dir, f"{env_id}.png")
+        plot_env(env_id, algos, png)
+        rel_png = os.path.relpath(png, os.path.dirname(readme) if readme else results_dir)
+        parts.append(f"### {env_id}\n\n{env_table(env_id, algos)}\n\n![{env_id} learning curves]({rel_png})\n")
+    text = "\n".join(parts) or "No results yet.\n"
+    text += ("\nFinal return: the last deterministic evaluation of each seed, mean ± standard error over seeds; "
+             "normalized: return / the demonstrations' mean return; IQM: interquartile mean over seeds with a "
+             "95% percentile-bootstrap interval. Paper: the RILe paper's MuJoCo table (v2 envs).\n")
+    if bad:
+        text += "\nResults files skipped:\n" + "".join(f"- {b}\n" for b in bad)
+        for b in bad:
+            print(f"warning: skipped {b}", file=sys.stderr)
+    with open(os.path.join(results_dir, "REPORT.md"), "w") as f:
+        f.write(text)
+    if readme and os.path.exists(readme):
+        content = open(readme).read()
+        if README_START in content and README_END in content:
+            head, rest = content.split(README_START, 1)
+            content = head + README_START + "\n" + text + rest[rest.index(README_END):]
+            with open(readme, "w") as f:
+                f.write(content)
+    return text
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--scripts", nargs="+", default=["expert.py"], help="the scripts to run")
+    parser.add_argument("--env-ids", nargs="+", default=["Hopper-v4"])
+    parser.add_argument("--seeds", nargs="+", type=int, default=[1, 2, 3])
+    parser.add_argument("--total-timesteps", type=int, default=200_000)
+    parser.add_argument("--tag", default="", help="names a variant (its extra args) so its results stay apart")
+    parser.add_argument("--workers", type=int, default=1, help="jobs at once on this machine")
+    parser.add_argument("--launcher", choices=["local", "slurm", "submitit-local"], default="local")
+    parser.add_argument("--partition", default=None, help="Slurm partition")
+    parser.add_argument("--time", type=int, default=24 * 60, help="Slurm time limit per job, minutes")
+    parser.add_argument("--cpus", type=int, default=2, help="Slurm CPUs per job")
+    parser.add_argument("--gpus", type=int, default=0, help="Slurm GPUs per job (pass --cuda through as well)")
+    parser.add_argument("--wait", action=argparse.BooleanOptionalAction, default=True,
+                        help="with a submitit launcher, wait for the jobs and collect their results")
+    parser.add_argument("--status", action="store_true", help="show the sweep's jobs and exit")
+    parser.add_argument("--report", action="store_true", help="write tables, curves and the README section")
+    parser.add_argument("--results-dir", default=RESULTS_DIR)
+    args, extra = parser.parse_known_args(argv)
+    if args.report:
+        print(report(args.results_dir))
+        return
+    for script in args.scripts:
+        if not os.path.exists(os.path.join(ROOT, script)):
+            parser.error(f"no script '{script}' in {ROOT}")
+    jobs = [Job(s, e, seed, args.total_timesteps, extra, args.tag)
+            for s in args.scripts for e in args.env_ids for seed in args.seeds]
+    if args.status:
+        print_status(jobs, args.results_dir)
+        return
+    start = time.time()
+    run_sweep(jobs, args)
+    print_status(jobs, args.results_dir)
+    print(f"sweep took {(time.time() - start) / 60:.1f} min; `python benchmark.py --report` for tables and curves")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,139 @@
+"""benchmark.py: skipping and resuming jobs, the report's statistics, tables and curves, bad files."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+import benchmark
+from conftest import ROOT
+
+TINY = ["--learning-starts", "100", "--eval-freq", "100", "--eval-episodes", "2", "--hidden-dim", "32", "--batch-size", "32"]
+
+
+# ---------------------------------------------------------------- statistics
+
+
+def test_mean_and_standard_error():
+    m, se = benchmark.mean_se([1.0, 2.0, 3.0, 4.0])
+    assert m == 2.5 and se == pytest.approx(np.sqrt(((1.5**2 + 0.5**2) * 2) / 3) / 2)  # s.d. 1.2910 / sqrt(4)
+    assert np.isnan(benchmark.mean_se([7.0])[1])
+
+
+def test_interquartile_mean():
+    assert benchmark.iqm([4, 1, 3, 2]) == 2.5  # drops 1 and 4
+    assert benchmark.iqm([1, 2, 3, 4, 100, 7, 8, 9]) == 5.5  # middle four of eight: 3, 4, 7, 8
+    assert benchmark.iqm([1, 2, 30]) == 11.0  # fewer than four values: nothing to trim
+    scipy_stats = pytest.importorskip("scipy.stats")
+    x = np.random.default_rng(0).normal(size=13)
+    assert benchmark.iqm(x) == pytest.approx(scipy_stats.trim_mean(x, 0.25))
+
+
+def test_bootstrap_interval():
+    assert benchmark.bootstrap_ci([3.0, 3.0, 3.0]) == (3.0, 3.0)
+    x = [0.1, 0.5, 0.9, 0.7, 0.3]
+    lo, hi = benchmark.bootstrap_ci(x)
+    assert lo < benchmark.iqm(x) < hi and (lo, hi) == benchmark.bootstrap_ci(x)  # reproducible
+    assert min(x) <= lo and hi <= max(x)
+
+
+# ---------------------------------------------------------------- report
+
+
+def fake_result(algo, seed, curve, expert=None, env_id="Hopper-v4"):
+    evals = [{"step": (i + 1) * 1000, "mean": v, "std": 0.0, "normalized": v / expert if expert else None}
+             for i, v in enumerate(curve)]
+    return {"algo": algo, "env_id": env_id, "seed": seed, "finished": True, "evals": evals, "final_return": curve[-1],
+            "final_normalized_return": curve[-1] / expert if expert else None, "expert_return": expert,
+            "wall_time_s": 3600.0 * seed, "sps": 100.0, "machine": {}, "config": {}}
+
+
+@pytest.fixture
+def results_dir(tmp_path):
+    d = tmp_path / "results"
+    (d / "Hopper-v4").mkdir(parents=True)
+    for seed, final in ((1, 1000.0), (2, 2000.0), (3, 3000.0)):
+        (d / "Hopper-v4" / f"gail__{seed}.json").write_text(json.dumps(fake_result("gail", seed, [0.0, final], 4000.0)))
+    (d / "Hopper-v4" / "rile__1.json").write_text(json.dumps(fake_result("rile", 1, [10.0, 20.0, 3500.0], 3500.0)))
+    return d
+
+
+def test_report_table_plot_and_readme(results_dir, tmp_path):
+    readme = tmp_path / "README.md"
+    readme.write_text(f"# x\n\n{benchmark.README_START}\nold\n{benchmark.README_END}\n\nafter\n")
+    text = benchmark.report(str(results_dir), readme=str(readme))
+    # gail: finals 1000, 2000, 3000 -> 2000 +- 577.4 (s.d. 1000 / sqrt 3); normalized 0.5 +- 0.144
+    assert "| gail | 3 | 2000.0 ± 577.4 | 0.500 ± 0.144 | 0.500 [0.250, 0.750] | 2000 | 2.00 | 3361 |" in text
+    assert "| rile | 1 | 3500.0 | 1.000 | 1.000 [1.000, 1.000] | 3000 | 1.00 | 3417 |" in text
+    png = results_dir / "Hopper-v4.png"
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 5000
+    content = readme.read_text()
+    assert "old" not in content and "| gail | 3 |" in content and content.endswith("after\n")
+    assert (results_dir / "REPORT.md").read_text() == text
+
+
+def test_bad_results_files_are_named_not_crashed_on(results_dir, capsys):
+    (results_dir / "Hopper-v4" / "broken__1.json").write_text("{not json")
+    (results_dir / "Hopper-v4" / "partial__1.json").write_text(json.dumps({"algo": "partial"}))
+    (results_dir / "Hopper-v4" / "empty__1.json").write_text(json.dumps(fake_result("empty", 1, [1.0]) | {"evals": []}))
+    text = benchmark.report(str(results_dir), readme=None)
+    assert "| gail | 3 |" in text
+    for name in ("broken__1.json", "partial__1.json", "empty__1.json"):
+        assert name in text and name in capsys.readouterr().err or name in text
+
+
+# ---------------------------------------------------------------- sweeps
+
+
+def sweep_cmd(results, total, *extra):
+    return [sys.executable, "-W", "ignore", str(ROOT / "benchmark.py"), "--scripts", "expert.py", "--env-ids",
+            "InvertedPendulum-v4", "--seeds", "1", "--total-timesteps", str(total), "--results-dir", str(results),
+            *extra, *TINY]
+
+
+def test_interrupted_job_resumes_finished_job_is_skipped(tmp_path):
+    results = tmp_path / "results"
+    run_results = tmp_path / "runs/bench__InvertedPendulum-v4__expert__1/results.json"
+    proc = subprocess.Popen(sweep_cmd(results, 1500), cwd=tmp_path, start_new_session=True,
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    deadline = time.time() + 120
+    while time.time() < deadline:
+        if run_results.exists() and len(json.loads(run_results.read_text())["evals"]) >= 3:
+            break
+        time.sleep(0.1)
+    os.killpg(proc.pid, signal.SIGTERM)  # like a session ending: the sweep and its job are stopped
+    proc.communicate(timeout=60)
+    status = subprocess.run(sweep_cmd(results, 1500, "--status"), cwd=tmp_path, capture_output=True, text=True)
+    assert "1 interrupted" in status.stdout, status.stdout
+    stopped_at = json.loads(run_results.read_text())["evals"][-1]["step"]
+    assert stopped_at < 1500
+
+    again = subprocess.run(sweep_cmd(results, 1500), cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert again.returncode == 0 and "done, final return" in again.stdout, again.stdout + again.stderr
+    final = json.loads((results / "InvertedPendulum-v4" / "expert__1.json").read_text())
+    assert [e["step"] for e in final["evals"]] == list(range(100, 1501, 100))  # one continuous curve
+    assert "--resume" in final["command"]
+
+    third = subprocess.run(sweep_cmd(results, 1500), cwd=tmp_path, capture_output=True, text=True, timeout=120)
+    assert "1 of 1 jobs already done; running 0" in third.stdout
+
+
+def test_submitit_launcher_path(tmp_path, monkeypatch):
+    pytest.importorskip("submitit")
+    monkeypatch.chdir(tmp_path)
+    results = tmp_path / "results"
+    benchmark.main(["--scripts", "expert.py", "--env-ids", "InvertedPendulum-v4", "--seeds", "2",
+                    "--total-timesteps", "300", "--results-dir", str(results), "--launcher", "submitit-local", *TINY])
+    final = json.loads((results / "InvertedPendulum-v4" / "expert__2.json").read_text())
+    assert final["finished"] and final["evals"][-1]["step"] == 300 and final["seed"] == 2
+
+
+def test_unknown_script_is_a_clear_error(capsys):
+    with pytest.raises(SystemExit):
+        benchmark.main(["--scripts", "nope.py"])
+    assert "no script 'nope.py'" in capsys.readouterr().err
