@@ -408,10 +408,18 @@ def evaluate(act, env_id: str, num_episodes: int, seed: int, capture_video_dir: 
 
 
 # --- shared: results ---
+def cpu_name() -> str:
+    try:
+        with open("/proc/cpuinfo") as f:
+            return next(line.split(":", 1)[1].strip() for line in f if line.startswith("model name"))
+    except (OSError, StopIteration):
+        return platform.processor() or platform.machine()
+
+
 def machine_info(device) -> dict:
     git = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
                          cwd=os.path.dirname(os.path.abspath(__file__)))
-    info = {"host": platform.node(), "cpu": platform.processor() or platform.machine(),
+    info = {"host": platform.node(), "cpu": cpu_name(),
             "cpu_count": os.cpu_count(), "torch": torch.__version__, "threads": torch.get_num_threads(),
             "device": str(device), "python": platform.python_version(), "gymnasium": gym.__version__,
             "git_commit": git.stdout.strip() if git.returncode == 0 else None}

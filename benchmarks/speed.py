@@ -76,6 +76,9 @@ def main():
 
     import torch
 
+    sys.path.insert(0, ROOT)
+    import expert
+
     # the machine's speed drifts (shared host): alternate the implementations and report medians
     runs = {"sb3": []} | {f"expert.py ({v})": [] for v in args.variants}
     with tempfile.TemporaryDirectory() as workdir:
@@ -90,7 +93,7 @@ def main():
         "what": "env steps per second after learning starts, evaluation excluded",
         "env_id": args.env_id, "learning_starts": args.learning_starts, "timed_steps": args.steps,
         "repeats": args.repeats, "sps_runs": runs, "sps": results, "ratio_to_sb3": {k: v / results["sb3"] for k, v in results.items() if k != "sb3"},
-        "machine": {"cpu": platform.processor() or platform.machine(), "cpu_count": os.cpu_count(),
+        "machine": {"cpu": expert.cpu_name(), "cpu_count": os.cpu_count(),
                     "torch": torch.__version__, "threads": args.threads, "python": platform.python_version()},
         "git_commit": git.stdout.strip() or None, "date": time.strftime("%Y-%m-%d %H:%M"),
         "command": " ".join([os.path.relpath(sys.argv[0], ROOT)] + sys.argv[1:]),
