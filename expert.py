@@ -241,7 +241,7 @@ class TwinQ(nn.Module):
 class SAC(nn.Module):
     """Actor, twin critics, target critics and the temperature, with one `update` per env step."""
 
-    def __init__(self, obs_dim, act_dim, action_low, action_high, args, device):
+    def __init__(self, obs_dim, act_dim, action_low, action_high, args, device, capturable: bool = False):
         super().__init__()
         self.actor = Actor(obs_dim, act_dim, action_low, action_high, args.hidden_dim)
         self.qf = TwinQ(obs_dim, act_dim, args.hidden_dim)
@@ -252,7 +252,7 @@ class SAC(nn.Module):
         self.target_entropy = -float(act_dim)
         self.gamma, self.tau = args.gamma, args.tau
         self.to(device)
-        adam = dict(capturable=args.cudagraphs, fused=True)
+        adam = dict(capturable=capturable, fused=True)  # capturable: the optimiser steps can sit in a CUDA graph
         self.q_optimizer = torch.optim.Adam(self.qf.parameters(), lr=args.q_lr, **adam)
         self.actor_optimizer = torch.optim.Adam(self.actor.parameters(), lr=args.policy_lr, **adam)
         self.alpha_optimizer = torch.optim.Adam([self.log_alpha], lr=args.policy_lr, **adam) if args.autotune else None
@@ -304,27 +304,35 @@ METRIC_NAMES = ["qf_loss", "qf_values", "actor_loss", "alpha_loss", "alpha", "en
 
 
 class ReplayBuffer:
-    """Preallocated transitions, one row each: [obs | action | next_obs | reward | terminated]."""
+    """Preallocated transitions, one row each: [obs | action | next_obs | reward | terminated | extra].
+    `extra_dim` columns hold whatever else a script stores per transition (none for plain SAC)."""
 
-    def __init__(self, obs_dim: int, act_dim: int, capacity: int, device):
+    def __init__(self, obs_dim: int, act_dim: int, capacity: int, device, extra_dim: int = 0):
         self.obs_dim, self.act_dim, self.capacity = obs_dim, act_dim, capacity
-        self.storage = torch.zeros(capacity, 2 * obs_dim + act_dim + 2, dtype=torch.float32, device=device)
+        self.storage = torch.zeros(capacity, 2 * obs_dim + act_dim + 2 + extra_dim, dtype=torch.float32, device=device)
         self.pos, self.size = 0, 0
 
-    def add(self, obs, action, next_obs, reward, terminated):
-        row = np.concatenate([obs, action, next_obs, [reward, float(terminated)]]).astype(np.float32)
+    def add(self, obs, action, next_obs, reward, terminated, extra=()):
+        row = np.concatenate([obs, action, next_obs, [reward, float(terminated)], extra]).astype(np.float32)
         self.storage[self.pos].copy_(torch.from_numpy(row), non_blocking=False)
         self.pos = (self.pos + 1) % self.capacity
         self.size = min(self.size + 1, self.capacity)
 
-    def sample(self, batch_size: int):
-        idx = torch.randint(0, self.size, (batch_size,), device=self.storage.device)
+    def sample(self, batch_size: int, recent: Optional[int] = None):
+        """Uniform rows; with `recent`, only from the last `recent` added (a FIFO buffer of that size)."""
+        window = self.size if recent is None else min(recent, self.size)
+        idx = torch.randint(0, window, (batch_size,), device=self.storage.device)
+        if window < self.size:
+            idx = (self.pos - 1 - idx) % self.capacity
         return self.storage[idx]
 
     def split(self, rows):
         """rows (B, width) -> obs, actions, next_obs, rewards, terminations."""
         o, a = self.obs_dim, self.act_dim
-        return rows[:, :o], rows[:, o : o + a], rows[:, o + a : 2 * o + a], rows[:, -2], rows[:, -1]
+        return rows[:, :o], rows[:, o : o + a], rows[:, o + a : 2 * o + a], rows[:, 2 * o + a], rows[:, 2 * o + a + 1]
+
+    def extra(self, rows):
+        return rows[:, 2 * self.obs_dim + self.act_dim + 2 :]
 
     def state_dict(self):
         return {"storage": self.storage[: self.size].cpu().clone(), "pos": self.pos, "size": self.size}
@@ -332,31 +340,6 @@ class ReplayBuffer:
     def load_state_dict(self, state):
         self.size, self.pos = state["size"], state["pos"]
         self.storage[: self.size].copy_(state["storage"])
-
-
-def make_update_fn(agent: SAC, rb: ReplayBuffer, args):
-    """Returns step() -> metrics tensor: sample a batch and run one SAC update, plain, compiled or
-    replayed from a CUDA graph."""
-    update = torch.compile(agent.update) if args.compile else agent.update
-    if not args.cudagraphs:
-        return lambda: update(*rb.split(rb.sample(args.batch_size)))
-    static_rows = rb.sample(args.batch_size)
-    stream = torch.cuda.Stream()
-    stream.wait_stream(torch.cuda.current_stream())
-    with torch.cuda.stream(stream):  # warm-up on a side stream (these are real updates)
-        for _ in range(3):
-            update(*rb.split(static_rows))
-    torch.cuda.current_stream().wait_stream(stream)
-    graph = torch.cuda.CUDAGraph()
-    with torch.cuda.graph(graph):
-        static_metrics = update(*rb.split(static_rows))
-
-    def step():
-        torch.index_select(rb.storage, 0, torch.randint(0, rb.size, (args.batch_size,), device=rb.storage.device), out=static_rows)
-        graph.replay()
-        return static_metrics.clone()
-
-    return step
 
 
 def make_act_fn(actor: Actor, obs_dim: int, device, cudagraphs: bool):
@@ -384,6 +367,31 @@ def make_act_fn(actor: Actor, obs_dim: int, device, cudagraphs: bool):
 
     return act_graphed
 # --- end shared: sac ---
+
+
+def make_update_fn(agent: SAC, rb: ReplayBuffer, args):
+    """Returns step() -> metrics tensor: sample a batch and run one SAC update, plain, compiled or
+    replayed from a CUDA graph."""
+    update = torch.compile(agent.update) if args.compile else agent.update
+    if not args.cudagraphs:
+        return lambda: update(*rb.split(rb.sample(args.batch_size)))
+    static_rows = rb.sample(args.batch_size)
+    stream = torch.cuda.Stream()
+    stream.wait_stream(torch.cuda.current_stream())
+    with torch.cuda.stream(stream):  # warm-up on a side stream (these are real updates)
+        for _ in range(3):
+            update(*rb.split(static_rows))
+    torch.cuda.current_stream().wait_stream(stream)
+    graph = torch.cuda.CUDAGraph()
+    with torch.cuda.graph(graph):
+        static_metrics = update(*rb.split(static_rows))
+
+    def step():
+        torch.index_select(rb.storage, 0, torch.randint(0, rb.size, (args.batch_size,), device=rb.storage.device), out=static_rows)
+        graph.replay()
+        return static_metrics.clone()
+
+    return step
 
 
 # --- shared: evaluation ---
@@ -443,6 +451,9 @@ def write_results(path: str, args, evals: list, expert_return: Optional[float], 
     with open(path + ".tmp", "w") as f:
         json.dump(results, f, indent=1)
     os.replace(path + ".tmp", path)
+def format_time(seconds: float) -> str:
+    seconds = int(seconds)
+    return f"{seconds // 3600}h{seconds % 3600 // 60:02d}m" if seconds >= 3600 else f"{seconds // 60}m{seconds % 60:02d}s"
 # --- end shared: results ---
 
 
@@ -497,7 +508,7 @@ def resume_args(cli_args, saved_config: dict):
     args = type(cli_args)(**{f.name: saved_config[f.name] for f in fields(cli_args) if f.name in saved_config})
     defaults = type(cli_args)()
     for name in ("total_timesteps", "cuda", "compile", "cudagraphs", "threads"):
-        if getattr(cli_args, name) != getattr(defaults, name):
+        if hasattr(cli_args, name) and getattr(cli_args, name) != getattr(defaults, name):
             setattr(args, name, getattr(cli_args, name))
     args.resume = cli_args.resume
     return args
@@ -632,11 +643,6 @@ def record_and_save(act, actor: Actor, args, training_steps: int, source: str, o
           f"{returns.mean():.1f} +- {returns.std():.1f} (min {returns.min():.1f}) -> {demo_path}, {actor_path}")
 
 
-def format_time(seconds: float) -> str:
-    seconds = int(seconds)
-    return f"{seconds // 3600}h{seconds % 3600 // 60:02d}m" if seconds >= 3600 else f"{seconds // 60}m{seconds % 60:02d}s"
-
-
 if __name__ == "__main__":
     args = tyro.cli(Args)
     checkpoint = None
@@ -677,16 +683,21 @@ if __name__ == "__main__":
     writer.add_text("hyperparameters", "|param|value|\n|-|-|\n" + "\n".join(f"|{k}|{v}|" for k, v in vars(args).items()))
 
     # ALGO LOGIC: initialise the agent and its replay buffer
-    agent = SAC(obs_dim, act_dim, env.action_space.low, env.action_space.high, args, device)
+    agent = SAC(obs_dim, act_dim, env.action_space.low, env.action_space.high, args, device, capturable=args.cudagraphs)
     rb = ReplayBuffer(obs_dim, act_dim, args.buffer_size, device)
-    evals, start_step, wall_offset = [], 0, 0.0
+    evals, start_step, wall_offset, refill_until = [], 0, 0.0, 0
     if checkpoint:
         agent.load_state_dict(checkpoint["agent"])
         for name in ("q_optimizer", "actor_optimizer", "alpha_optimizer"):
             if getattr(agent, name) is not None:
                 getattr(agent, name).load_state_dict(checkpoint[name])
-        rb.load_state_dict(checkpoint["replay_buffer"])
         evals, start_step, wall_offset = checkpoint["evals"], checkpoint["global_step"], checkpoint["wall_time"]
+        if "replay_buffer" in checkpoint:
+            rb.load_state_dict(checkpoint["replay_buffer"])
+        else:  # a checkpoint saved without its buffer (to move it between machines): refill before updating
+            refill_until = start_step + args.learning_starts
+            print(f"warning: the checkpoint holds no replay buffer; the current policy refills it for "
+                  f"{args.learning_starts} steps before updates resume")
         set_rng_state(checkpoint["rng"])
         print(f"resumed {run_dir} at step {start_step} ({rb.size} transitions in the replay buffer)")
     act = make_act_fn(agent.actor, obs_dim, device, args.cudagraphs)
@@ -723,7 +734,7 @@ if __name__ == "__main__":
             obs, _ = env.reset()
 
         # ALGO LOGIC: training
-        if global_step >= args.learning_starts:
+        if global_step >= max(args.learning_starts, refill_until):
             if update_step is None:
                 update_step = make_update_fn(agent, rb, args)
             metrics = update_step()

@@ -146,6 +146,19 @@ def test_replay_buffer_rows_round_trip():
     assert rb.sample(16).shape == (16, 3 + 2 + 3 + 2)
 
 
+def test_replay_buffer_recent_window_and_extra_columns():
+    rb = expert.ReplayBuffer(1, 1, capacity=10, device="cpu", extra_dim=2)
+    for i in range(15):  # wraps: rows hold 5..14, the last three added are 12, 13, 14
+        rb.add([i], [0.0], [i + 1], 0.0, False, extra=[i, -i])
+    torch.manual_seed(0)
+    recent = rb.split(rb.sample(500, recent=3))[0].flatten()
+    assert set(recent.tolist()) == {12.0, 13.0, 14.0}
+    assert set(rb.split(rb.sample(2000))[0].flatten().tolist()) == set(map(float, range(5, 15)))
+    assert set(rb.split(rb.sample(100, recent=50))[0].flatten().tolist()) <= set(map(float, range(5, 15)))
+    rows = rb.sample(4)
+    assert torch.equal(rb.extra(rows)[:, 0], rows[:, 0]) and torch.equal(rb.extra(rows)[:, 1], -rows[:, 0])
+
+
 # ---------------------------------------------------------------- the training script end to end
 
 
