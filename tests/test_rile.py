@@ -1,0 +1,272 @@
+"""rile.py: the trainer rewards, the student's reward, the trainer's transitions, freezing, expert
+fractions, noise, the reward-dynamics metrics, the discriminator loss, the saved reward, end to end."""
+
+import json
+
+import numpy as np
+import pytest
+import torch
+import torch.nn as nn
+
+import rile
+from conftest import ROOT
+
+OBS, ACT = 3, 2
+
+
+def tiny_args(**kw):
+    base = dict(hidden_dim=16, trainer_hidden_dim=16, batch_size=8, trainer_batch_size=8, disc_batch_size=4,
+                disc_hidden_dim=8, trainer_buffer_size=6, disc_buffer_size=6)
+    return rile.Args(**(base | kw))
+
+
+def learners(args):
+    torch.manual_seed(0)
+    student = rile.SAC(OBS, ACT, -np.ones(ACT), np.ones(ACT), args, "cpu")
+    trainer_args = rile.dataclasses.replace(args, hidden_dim=args.trainer_hidden_dim, alpha=args.trainer_alpha, autotune=False)
+    trainer = rile.SAC(OBS + ACT, 1, np.array([-1.0]), np.array([1.0]), trainer_args, "cpu")
+    disc = rile.Discriminator(OBS + ACT, args.disc_hidden_dim, args.disc_lr, args.disc_gp)
+    rb = rile.ReplayBuffer(OBS, ACT, 50, "cpu", extra_dim=1)
+    for i in range(20):  # obs encode the row index, so batches can be traced back to rows
+        rb.add(np.full(OBS, i), np.full(ACT, 0.01 * i), np.full(OBS, i + 0.5), 1.0, i % 7 == 6, extra=[0.02 * i - 0.2])
+    expert = {"obs": torch.full((10, OBS), 100.0) + torch.arange(10.0)[:, None], "actions": torch.full((10, ACT), 0.5),
+              "next_obs": torch.full((10, OBS), 200.0), "terminations": torch.zeros(10)}
+    state = {"frozen": False, "reward_only": False, "trainer_updates": 0, "critic_loss_ema": torch.tensor(float("inf"))}
+    return student, trainer, disc, rb, expert, state
+
+
+# ---------------------------------------------------------------- rewards
+
+
+def test_trainer_rewards_against_hand_computed_values():
+    d, a = torch.tensor([0.2, 0.9]), torch.tensor([0.5, -1.0])  # v(D) = 2D - 1 = (-0.6, 0.8)
+    want = {
+        "difference": [-1.1, -1.8],
+        "exp-difference": [np.exp(-1.1), np.exp(-1.8)],
+        "multiplication": [-0.3, -0.8],
+        "naive": [0.2, 0.9],
+        "exp-naive": [np.exp(0.8), np.exp(0.1)],
+        "sigmoid": [0.2 / (1 + np.exp(-0.5)), 0.9 / (1 + np.exp(1.0))],
+    }
+    assert set(want) == set(rile.TRAINER_REWARDS)
+    for name, values in want.items():
+        assert rile.trainer_reward(name, d, a).tolist() == pytest.approx(values, rel=1e-6), name
+    with pytest.raises(ValueError):
+        rile.trainer_reward("nope", d, a)
+
+
+def test_exp_difference_is_maximised_at_v_of_d():
+    d = torch.tensor(0.8)
+    actions = torch.linspace(-1, 1, 201)
+    best = actions[rile.trainer_reward("exp-difference", d, actions).argmax()]
+    assert best.item() == pytest.approx(0.6, abs=1e-6)
+
+
+def test_student_reward_is_the_trainers_action_on_that_batch():
+    args = tiny_args()
+    student, trainer, disc, rb, expert, state = learners(args)
+    obs, actions = torch.randn(5, OBS), torch.rand(5, ACT)
+    a_t = trainer.actor.deterministic(torch.cat([obs, actions], -1)).squeeze(-1)
+    assert torch.equal(rile.student_reward(trainer.actor, obs, actions, "none"), a_t)
+    assert torch.allclose(rile.student_reward(trainer.actor, obs, actions, "survival"), (1 + a_t) / 2)
+
+
+def test_update_relabels_the_student_batch_with_the_current_trainer(monkeypatch):
+    args = tiny_args()
+    student, trainer, disc, rb, expert, state = learners(args)
+    seen = []
+
+    def capture(obs, actions, next_obs, rewards, terminations):  # the trainer as it is when the student learns
+        expected = (1 + trainer.actor.deterministic(torch.cat([obs, actions], -1)).squeeze(-1)) / 2
+        seen.append((rewards, expected.detach()))
+        return torch.zeros(6)
+
+    monkeypatch.setattr(student, "update", capture)
+    rile.rile_update(student, trainer, disc, rb, expert, args, state)
+    rile.rile_update(student, trainer, disc, rb, expert, args, state)  # the trainer changed in between
+    for rewards, expected in seen:
+        assert torch.allclose(rewards, expected)
+    assert not torch.allclose(seen[0][1], seen[1][1])
+
+
+def test_trainer_transition_layout(monkeypatch):
+    args = tiny_args(termination_remedy="none")
+    student, trainer, disc, rb, expert, state = learners(args)
+    seen = {}
+    monkeypatch.setattr(trainer, "update", lambda *batch: seen.setdefault("trainer", batch) and torch.zeros(6))
+    torch.manual_seed(1)
+    rile.rile_update(student, trainer, disc, rb, expert, args, state)
+    obs_t, a_t, next_obs_t, r_t, terminated = seen["trainer"]
+    rows = obs_t[:, 0].long()
+    assert set(rows.tolist()) <= set(range(14, 20))  # the trainer's window: the 6 most recent rows
+    assert torch.equal(obs_t[:, :OBS], rows[:, None].float().expand(-1, OBS))  # o_T = (s, a_S)
+    assert torch.allclose(obs_t[:, OBS:], 0.01 * rows[:, None].float().expand(-1, ACT))
+    assert torch.allclose(a_t.squeeze(-1), 0.02 * rows.float() - 0.2)  # the stored trainer action
+    assert torch.equal(next_obs_t[:, :OBS], rows[:, None].float().expand(-1, OBS) + 0.5)  # o_T' = (s', a'_S)
+    assert (next_obs_t[:, OBS:].abs() <= 1).all()  # a'_S: the student's fresh action, inside the box
+    assert torch.equal(terminated, (rows % 7 == 6).float())  # the student's episode ends
+    d = disc.prob(obs_t)
+    assert torch.allclose(r_t, torch.exp(-((2 * d - 1) - a_t.squeeze(-1)).abs()))
+
+
+# ---------------------------------------------------------------- freezing and expert data
+
+
+def params(module):
+    return [p.detach().clone() for p in module.parameters()]
+
+
+def changed(before, module):
+    return any(not torch.equal(b, p) for b, p in zip(before, module.parameters()))
+
+
+def test_freezing_stops_trainer_updates_and_only_those():
+    args = tiny_args()
+    student, trainer, disc, rb, expert, state = learners(args)
+    rile.rile_update(student, trainer, disc, rb, expert, args, state)
+    assert state["trainer_updates"] == 1
+    state["frozen"] = True
+    before = {name: params(m) for name, m in (("student", student), ("trainer", trainer), ("disc", disc))}
+    out = rile.rile_update(student, trainer, disc, rb, expert, args, state)
+    assert not changed(before["trainer"], trainer) and state["trainer_updates"] == 1 and "trainer" not in out
+    assert changed(before["student"], student.actor) or changed(before["student"], student.qf)
+    assert changed(before["disc"], disc)
+    state["reward_only"] = True  # covariate shift: only the student learns
+    before_disc = params(disc)
+    rile.rile_update(student, trainer, disc, rb, expert, args, state)
+    assert not changed(before_disc, disc)
+
+
+@pytest.mark.parametrize("fraction", [0.0, 0.25, 0.5, 1.0])
+def test_expert_fractions_put_that_share_of_expert_pairs_in_the_batches(monkeypatch, fraction):
+    args = tiny_args(student_expert_fraction=fraction, trainer_expert_fraction=fraction)
+    student, trainer, disc, rb, expert, state = learners(args)
+    seen = {}
+    monkeypatch.setattr(student, "update", lambda *b: seen.setdefault("student", b) and torch.zeros(6))
+    monkeypatch.setattr(trainer, "update", lambda *b: seen.setdefault("trainer", b) and torch.zeros(6))
+    rile.rile_update(student, trainer, disc, rb, expert, args, state)
+    is_expert = seen["student"][0][:, 0] >= 100
+    assert is_expert.sum().item() == round(fraction * args.batch_size) and is_expert[: int(is_expert.sum())].all()
+    trainer_obs = seen["trainer"][0]
+    n = round(fraction * args.trainer_batch_size)
+    assert (trainer_obs[:n, 0] >= 100).all() and (trainer_obs[n:, 0] < 100).all()
+    assert torch.allclose(trainer_obs[:n, OBS:], torch.full((n, ACT), 0.5))  # expert actions in o_T
+
+
+def test_noise_options_change_what_they_say_and_nothing_else():
+    demos = {"observations": np.zeros((50, OBS), np.float32), "next_observations": np.ones((50, OBS), np.float32),
+             "actions": np.full((50, ACT), 0.9, np.float32), "terminations": np.zeros(50, bool)}
+    low, high = -np.ones(ACT), np.ones(ACT)
+    clean = rile.expert_tensors(demos, tiny_args(), low, high, "cpu")
+    acted = rile.expert_tensors(demos, tiny_args(expert_action_noise=0.5), low, high, "cpu")
+    stated = rile.expert_tensors(demos, tiny_args(expert_state_noise=0.2), low, high, "cpu")
+    assert torch.equal(acted["obs"], clean["obs"]) and torch.equal(acted["next_obs"], clean["next_obs"])
+    assert not torch.equal(acted["actions"], clean["actions"]) and acted["actions"].abs().max() <= 1.0
+    assert torch.equal(stated["actions"], clean["actions"])
+    assert not torch.equal(stated["obs"], clean["obs"]) and not torch.equal(stated["next_obs"], clean["next_obs"])
+    assert stated["obs"].std().item() == pytest.approx(0.2, rel=0.25)
+    assert torch.equal(stated["terminations"], clean["terminations"])
+
+
+# ---------------------------------------------------------------- reward dynamics
+
+
+def test_rfdc_fs_rfdc_and_cpr_against_scipy():
+    stats = pytest.importorskip("scipy.stats")
+    rng = np.random.default_rng(0)
+    x, y = rng.normal(size=100), rng.normal(1.0, 2.0, size=100)
+    assert rile.wasserstein_1d(x, y) == pytest.approx(stats.wasserstein_distance(x, y))
+    assert rile.pearson(x, 3 * x + y) == pytest.approx(stats.pearsonr(x, 3 * x + y)[0])
+    dyn = rile.RewardDynamics()
+    first = dyn.step(10, x, 2 * x + 1, np.array([0.0, 1.0]))
+    assert first["rfdc"] is None and first["fs_rfdc"] is None and first["cpr"] == pytest.approx(1.0)
+    second = dyn.step(20, y, -y, np.array([0.5, -1.0]))
+    assert second["rfdc"] == pytest.approx(stats.wasserstein_distance(y, x))
+    assert second["fs_rfdc"] == pytest.approx((0.5 + 2.0) / 2) and second["cpr"] == pytest.approx(-1.0)
+    assert dyn.step(30, np.ones(100), np.ones(100), np.zeros(2))["cpr"] is None  # constant rewards
+
+
+# ---------------------------------------------------------------- discriminator and saved reward
+
+
+def test_discriminator_loss_and_gradient_penalty_by_hand():
+    disc = rile.Discriminator(2, 8, lr=1e-3, gp_weight=1.0)
+    disc.net = nn.Linear(2, 1)
+    with torch.no_grad():
+        disc.net.weight.copy_(torch.tensor([[3.0, 4.0]]))
+        disc.net.bias.zero_()
+    loss, bce, gp, expert_prob, policy_prob = disc.loss(torch.tensor([[1.0, 0.0]]), torch.tensor([[0.0, 1.0]]))
+    # logits 3 (expert) and 4 (policy): BCE = softplus(-3) + softplus(4); |grad| = |(3, 4)| = 5: GP = (5 - 1)^2
+    want_bce = np.log1p(np.exp(-3.0)) + np.log1p(np.exp(4.0))
+    assert bce.item() == pytest.approx(want_bce, rel=1e-6) and gp.item() == pytest.approx(16.0)
+    assert loss.item() == pytest.approx(want_bce + 16.0, rel=1e-6)
+    assert expert_prob.item() == pytest.approx(1 / (1 + np.exp(-3.0))) and policy_prob.item() == pytest.approx(1 / (1 + np.exp(-4.0)))
+
+
+def test_discriminator_learns_to_separate():
+    torch.manual_seed(0)
+    disc = rile.Discriminator(2, 16, lr=1e-2, gp_weight=1.0)
+    expert_x, policy_x = torch.randn(64, 2) + 2, torch.randn(64, 2) - 2
+    for _ in range(200):
+        disc.update(expert_x, policy_x)
+    assert disc.prob(expert_x).mean() > 0.9 and disc.prob(policy_x).mean() < 0.1
+
+
+def test_saved_reward_round_trip(tmp_path):
+    args = tiny_args()
+    student, trainer, disc, rb, expert, state = learners(args)
+    rile.save_reward(str(tmp_path / "reward.pt"), trainer, disc, args, OBS, ACT)
+    _, trainer2, disc2, *_ = learners(tiny_args(seed=5))
+    with torch.no_grad():
+        for p in list(trainer2.actor.parameters()) + list(disc2.parameters()):
+            p.add_(1.0)
+    rile.load_reward(str(tmp_path / "reward.pt"), trainer2, disc2, args.env_id, OBS, ACT)
+    x = torch.randn(7, OBS + ACT)
+    assert torch.equal(trainer2.actor.deterministic(x), trainer.actor.deterministic(x)) and torch.equal(disc2(x), disc(x))
+    with pytest.raises(SystemExit, match="learned on Hopper-v4, not Walker2d-v4"):
+        rile.load_reward(str(tmp_path / "reward.pt"), trainer2, disc2, "Walker2d-v4", OBS, ACT)
+
+
+# ---------------------------------------------------------------- end to end
+
+
+TINY = ["--env-id", "InvertedPendulum-v4", "--learning-starts", "200", "--eval-freq", "300", "--eval-episodes", "2",
+        "--hidden-dim", "32", "--trainer-hidden-dim", "32", "--batch-size", "32", "--trainer-batch-size", "32",
+        "--disc-batch-size", "16", "--dynamics-freq", "200", "--num-expert-trajs", "2",
+        "--expert-path", str(ROOT / "experts/InvertedPendulum-v4.npz")]
+
+
+def test_end_to_end_every_update_path_then_covariate_shift(run, tmp_path):
+    out = run("rile.py", *TINY, "--total-timesteps", "600", "--run-name", "r", "--trainer-freeze-min-updates", "200",
+              "--trainer-freeze-threshold", "1e9", "--student-expert-fraction", "0.25", "--trainer-expert-fraction", "0.25",
+              "--expert-action-noise", "0.1").stdout
+    assert "trainer frozen at step 400" in out  # 200 trainer updates after learning starts at 200
+    results = json.loads((tmp_path / "runs/r/results.json").read_text())
+    assert results["finished"] and results["expert_return"] == pytest.approx(1000.0)
+    assert [e["step"] for e in results["evals"]] == [300, 600]
+    dynamics = json.loads((tmp_path / "runs/r/dynamics.json").read_text())
+    assert [d["step"] for d in dynamics] == [400, 600] and dynamics[1]["rfdc"] is not None
+    ckpt = torch.load(tmp_path / "runs/r/checkpoint.pt", weights_only=False)
+    assert ckpt["trainer_updates"] > 0 and ckpt["disc_optimizer"]["state"] and ckpt["trainer_q_optimizer"]["state"]
+    out = run("rile.py", *TINY, "--total-timesteps", "400", "--run-name", "cs", "--reward-from", "runs/r/reward.pt",
+              "--student-action-noise", "0.2").stdout
+    assert "done: 400 steps" in out
+    shifted = torch.load(tmp_path / "runs/cs/checkpoint.pt", weights_only=False)
+    assert shifted["trainer_updates"] == 0 and not shifted["disc_optimizer"]["state"]
+
+
+def test_demonstrations_of_another_env_are_refused(run):
+    proc = run("rile.py", "--env-id", "Hopper-v4", "--expert-path", str(ROOT / "experts/InvertedPendulum-v4.npz"),
+               "--total-timesteps", "10", check=False)
+    assert proc.returncode != 0 and "recorded on InvertedPendulum-v4, not Hopper-v4" in proc.stderr
+    assert "Traceback" not in proc.stderr
+
+
+def test_resume_continues_the_run(run, tmp_path):
+    run("rile.py", *TINY, "--total-timesteps", "300", "--run-name", "res")
+    out = run("rile.py", *TINY, "--resume", "runs/res", "--total-timesteps", "600").stdout
+    assert "resumed runs/res at step 300" in out
+    results = json.loads((tmp_path / "runs/res/results.json").read_text())
+    assert results["finished"] and [e["step"] for e in results["evals"]] == [300, 600]
+    ckpt = torch.load(tmp_path / "runs/res/checkpoint.pt", weights_only=False)
+    assert ckpt["global_step"] == 600 and ckpt["replay_buffer"]["size"] == 600 and ckpt["trainer_updates"] == 400
