@@ -1,4 +1,4 @@
-"""Env steps per second after learning starts: expert.py's SAC against Stable-Baselines3's SAC.
+"""Env steps per second after learning starts: expert.py's SAC (and rile.py) against Stable-Baselines3's SAC.
 
 Both run on Hopper-v4 with the same hyperparameters (batch 256, 256-256 ReLU, buffer 1e6, lr 3e-4,
 gamma 0.99, tau 0.005, autotuned entropy, one gradient step per env step, `--learning-starts` random
@@ -9,7 +9,7 @@ benchmarks/results/speed.json and prints a Markdown table.
 
     pip install stable-baselines3   # only for this benchmark
     python benchmarks/speed.py                       # expert.py (eager) vs SB3
-    python benchmarks/speed.py --variants eager compile --steps 5000
+    python benchmarks/speed.py --variants eager compile rile --steps 5000
 """
 
 import argparse
@@ -44,12 +44,15 @@ json.dump({"sps": steps / (time.perf_counter() - timer.t0)}, open(out, "w"))
 """
 
 
-def run_expert(variant: str, args, workdir: str) -> float:
-    flags = {"eager": [], "compile": ["--compile"]}[variant]
-    cmd = [sys.executable, "-W", "ignore", os.path.join(ROOT, "expert.py"), "--env-id", args.env_id,
+def run_script(variant: str, args, workdir: str) -> float:
+    """expert.py (eager / compile) or rile.py, on the project's demonstrations for rile.py."""
+    script, flags = {"eager": ("expert.py", ["--no-record-demos"]), "compile": ("expert.py", ["--no-record-demos", "--compile"]),
+                     "rile": ("rile.py", ["--expert-path", os.path.join(ROOT, "experts", f"{args.env_id}.npz"),
+                                          "--dynamics-freq", "0"])}[variant]
+    cmd = [sys.executable, "-W", "ignore", os.path.join(ROOT, script), "--env-id", args.env_id,
            "--total-timesteps", str(args.learning_starts + args.steps), "--learning-starts", str(args.learning_starts),
-           "--eval-freq", str(10**9), "--eval-episodes", "1", "--checkpoint-freq", "0", "--no-record-demos",
-           "--no-save-model", "--threads", str(args.threads), "--run-name", f"speed_{variant}", *flags]
+           "--eval-freq", str(10**9), "--eval-episodes", "1", "--checkpoint-freq", "0", "--no-save-model",
+           "--threads", str(args.threads), "--run-name", f"speed_{variant}", *flags]
     subprocess.run(cmd, cwd=workdir, check=True, capture_output=True)
     with open(os.path.join(workdir, "runs", f"speed_{variant}", "results.json")) as f:
         return json.load(f)["sps"]
@@ -70,7 +73,7 @@ def main():
     parser.add_argument("--steps", type=int, default=3000, help="timed env steps after learning starts")
     parser.add_argument("--threads", type=int, default=2, help="torch intra-op threads for both")
     parser.add_argument("--repeats", type=int, default=3, help="alternating runs of each; medians are reported")
-    parser.add_argument("--variants", nargs="+", default=["eager"], choices=["eager", "compile"])
+    parser.add_argument("--variants", nargs="+", default=["eager"], choices=["eager", "compile", "rile"])
     parser.add_argument("--out", default=os.path.join(ROOT, "benchmarks", "results", "speed.json"))
     args = parser.parse_args()
 
@@ -80,11 +83,13 @@ def main():
     import expert
 
     # the machine's speed drifts (shared host): alternate the implementations and report medians
-    runs = {"sb3": []} | {f"expert.py ({v})": [] for v in args.variants}
+    names = {"eager": "expert.py (eager)", "compile": "expert.py (compile)", "rile": "rile.py"}
+    runs = {"sb3": []} | {names[v]: [] for v in args.variants}
+    variant_of = {name: v for v, name in names.items()}
     with tempfile.TemporaryDirectory() as workdir:
         for repeat in range(args.repeats):
             for name in runs:
-                sps = run_sb3(args, workdir) if name == "sb3" else run_expert(name[11:-1], args, workdir)
+                sps = run_sb3(args, workdir) if name == "sb3" else run_script(variant_of[name], args, workdir)
                 runs[name].append(sps)
                 print(f"repeat {repeat + 1}: {name}: {sps:.1f} steps/s", flush=True)
     results = {name: statistics.median(values) for name, values in runs.items()}
