@@ -352,3 +352,18 @@ def test_shipped_demonstrations_load_and_meet_their_thresholds():
         assert len(data["episode_lengths"]) == 25, path.name
         assert data["episode_returns"].mean() >= thresholds.get(env_id, -math.inf), path.name
         assert (path.parent / f"{env_id}-actor.pt").exists(), f"{path.name} ships without its actor"
+
+
+def test_resume_from_a_checkpoint_without_its_replay_buffer(run, tmp_path):
+    """Checkpoints moved between machines may drop the buffer: the run refills it, then learns on."""
+    common = ["--env-id", "InvertedPendulum-v4", "--learning-starts", "100", "--eval-freq", "200", "--no-record-demos", *FAST]
+    run("expert.py", *common, "--total-timesteps", "200", "--run-name", "slim")
+    path = tmp_path / "runs/slim/checkpoint.pt"
+    ckpt = torch.load(path, weights_only=False)
+    del ckpt["replay_buffer"]
+    torch.save(ckpt, path)
+    out = run("expert.py", *common, "--resume", "runs/slim", "--total-timesteps", "500").stdout
+    assert "holds no replay buffer" in out and "resumed runs/slim at step 200 (0 transitions" in out
+    final = torch.load(path, weights_only=False)
+    assert final["global_step"] == 500 and final["replay_buffer"]["size"] == 300
+    assert final["q_optimizer"]["state"][0]["step"].item() > ckpt["q_optimizer"]["state"][0]["step"].item()
