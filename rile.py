@@ -712,6 +712,7 @@ class RewardDynamics:
         return out
 
 
+# --- shared: expert data ---
 def expert_tensors(demos: dict, args, action_low, action_high, device) -> dict:
     """The expert transitions as tensors, with the noise of the noise-robustness experiment added once."""
     rng = np.random.default_rng(args.seed + 1)
@@ -724,6 +725,7 @@ def expert_tensors(demos: dict, args, action_low, action_high, device) -> dict:
     as_tensor = lambda x: torch.as_tensor(np.asarray(x, dtype=np.float32), device=device)
     return {"obs": as_tensor(obs), "actions": as_tensor(actions), "next_obs": as_tensor(next_obs),
             "terminations": as_tensor(demos["terminations"])}
+# --- end shared: expert data ---
 
 
 def mix_expert(batch: tuple, expert: dict, fraction: float) -> tuple:
