@@ -720,7 +720,7 @@ def expert_tensors(demos: dict, args, action_low, action_high, device) -> dict:
     if args.expert_state_noise > 0:
         obs = obs + rng.normal(0, args.expert_state_noise, obs.shape).astype(np.float32)
         next_obs = next_obs + rng.normal(0, args.expert_state_noise, next_obs.shape).astype(np.float32)
-    if args.expert_action_noise > 0:
+    if getattr(args, "expert_action_noise", 0.0) > 0:  # state-only methods have no such flag
         actions = np.clip(actions + rng.normal(0, args.expert_action_noise, actions.shape), action_low, action_high)
     as_tensor = lambda x: torch.as_tensor(np.asarray(x, dtype=np.float32), device=device)
     return {"obs": as_tensor(obs), "actions": as_tensor(actions), "next_obs": as_tensor(next_obs),
