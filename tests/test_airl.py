@@ -1,0 +1,103 @@
+"""airl.py: f's shaping term and its termination mask, the logit f - log pi, the loss and gradient penalty
+by hand, relabelling from the current networks, and short runs through every update path."""
+
+import json
+
+import numpy as np
+import pytest
+import torch
+import torch.nn as nn
+
+import airl
+from conftest import ROOT
+
+
+def linear_disc(gamma=0.9, gp_weight=1.0):
+    """g(s, a) = sum(s) + sum(a); h(s) = 2 sum(s) + 1 (obs 2-d, action 1-d)."""
+    disc = airl.AIRLDiscriminator(2, 1, 8, gamma, state_only=False, lr=1e-3, gp_weight=gp_weight)
+    disc.g, disc.h = nn.Linear(3, 1), nn.Linear(2, 1)
+    with torch.no_grad():
+        disc.g.weight.fill_(1.0)
+        disc.g.bias.zero_()
+        disc.h.weight.fill_(2.0)
+        disc.h.bias.fill_(1.0)
+    return disc
+
+
+def test_shaping_is_masked_by_terminations_not_truncations():
+    disc = linear_disc()
+    s, a, s_next = torch.tensor([[1.0, 2.0]]), torch.tensor([[0.5]]), torch.tensor([[3.0, 1.0]])
+    g, h, h_next = 3.5, 7.0, 9.0
+    terminated = disc(s, a, s_next, torch.tensor([1.0]))
+    truncated = disc(s, a, s_next, torch.tensor([0.0]))  # a time-limit end is stored as not terminated
+    assert terminated.item() == pytest.approx(g - h)
+    assert truncated.item() == pytest.approx(g + 0.9 * h_next - h)
+    assert disc.reward_g(s, a).item() == pytest.approx(g)
+
+
+def test_loss_and_gradient_penalty_by_hand():
+    disc = linear_disc(gamma=0.5)
+    zero = torch.tensor([0.0])
+    expert = (torch.tensor([[1.0, 0.0]]), torch.tensor([[0.0]]), torch.tensor([[0.0, 0.0]]), zero)
+    policy = (torch.tensor([[0.0, 0.0]]), torch.tensor([[1.0]]), torch.tensor([[1.0, 1.0]]), zero)
+    loss, bce, gp, expert_prob, policy_prob = disc.loss(expert, policy, torch.tensor([-1.0]), torch.tensor([0.5]))
+    f_expert = 1.0 + 0.5 * 1.0 - 3.0  # g = 1, h(s') = 1, h(s) = 3
+    f_policy = 1.0 + 0.5 * 5.0 - 1.0  # g = 1, h(s') = 5, h(s) = 1
+    l_e, l_p = f_expert + 1.0, f_policy - 0.5  # logits: f - log pi
+    want_bce = np.log1p(np.exp(-l_e)) + np.log1p(np.exp(l_p))
+    # grad of f w.r.t. (s, a, s') = (1 - 2, 1 - 2, 1, 0.5 * 2, 0.5 * 2): norm sqrt(1 + 1 + 1 + 1 + 1)
+    want_gp = (np.sqrt(5.0) - 1) ** 2
+    assert bce.item() == pytest.approx(want_bce, rel=1e-6) and gp.item() == pytest.approx(want_gp, rel=1e-6)
+    assert loss.item() == pytest.approx(want_bce + want_gp, rel=1e-6)
+    assert expert_prob.item() == pytest.approx(1 / (1 + np.exp(-l_e)))
+
+
+def make(monkeypatch, **kw):
+    torch.manual_seed(0)
+    args = airl.Args(hidden_dim=16, batch_size=8, disc_batch_size=4, disc_hidden_dim=8, **kw)
+    agent = airl.SAC(2, 1, np.array([-0.4]), np.array([0.4]), args, "cpu")
+    disc = airl.AIRLDiscriminator(2, 1, 8, args.gamma, args.state_only, args.disc_lr, args.disc_gp)
+    rb = airl.ReplayBuffer(2, 1, 20, "cpu")
+    for i in range(20):
+        rb.add(np.array([i / 10, 0.0]), np.array([0.1]), np.array([i / 10 + 0.1, 0.0]), 5.0, i % 5 == 4)
+    expert = {"obs": torch.randn(10, 2), "actions": torch.full((10, 1), 0.4),  # on the bound of the box
+              "next_obs": torch.randn(10, 2), "terminations": torch.zeros(10)}
+    seen = []
+
+    def capture(obs, actions, next_obs, rewards, terminations):  # the networks as they are at the SAC update
+        want = disc(obs, actions, next_obs, terminations) if args.reward == "f" else disc.reward_g(obs, actions)
+        seen.append((rewards, want.detach()))
+        return torch.zeros(6)
+
+    monkeypatch.setattr(agent, "update", capture)
+    return args, agent, disc, rb, expert, seen
+
+
+@pytest.mark.parametrize("reward", ["f", "g"])
+def test_rewards_are_relabelled_from_the_current_networks(monkeypatch, reward):
+    args, agent, disc, rb, expert, seen = make(monkeypatch, reward=reward)
+    for _ in range(3):
+        out = airl.airl_update(agent, disc, rb, expert, args)
+        rewards, want = seen[-1]
+        assert torch.allclose(rewards, want) and not torch.any(rewards == 5.0)
+        assert torch.isfinite(out["disc"]).all()  # expert actions on the bound: log pi stays finite
+
+
+def test_state_only_reward_ignores_actions(monkeypatch):
+    args, agent, disc, rb, expert, seen = make(monkeypatch, state_only=True)
+    s = torch.randn(4, 2)
+    assert torch.equal(disc.reward_g(s, torch.zeros(4, 1)), disc.reward_g(s, torch.ones(4, 1)))
+
+
+def test_end_to_end(run, tmp_path):
+    common = ["--env-id", "InvertedPendulum-v4", "--total-timesteps", "500", "--learning-starts", "200",
+              "--eval-freq", "250", "--eval-episodes", "2", "--hidden-dim", "32", "--batch-size", "32",
+              "--num-expert-trajs", "2", "--expert-path", str(ROOT / "experts/InvertedPendulum-v4.npz")]
+    out = run("airl.py", *common, "--run-name", "a", "--expert-action-noise", "0.2").stdout
+    assert "AIRL reward: f" in out
+    out = run("airl.py", *common, "--run-name", "b", "--reward", "g", "--state-only").stdout
+    assert "AIRL reward: g (state-only g)" in out
+    results = json.loads((tmp_path / "runs/b/results.json").read_text())
+    assert results["finished"] and [e["step"] for e in results["evals"]] == [250, 500]
+    saved = torch.load(tmp_path / "runs/b/reward.pt", weights_only=True)
+    assert saved["state_only"] and saved["g"]["0.weight"].shape[1] == 4  # g(s) of the 4-d state
