@@ -148,7 +148,7 @@ def seed_everything(seed: int, torch_deterministic: bool = True) -> None:
 # --- end shared: env ---
 
 
-# --- shared: sac ---
+# --- shared: actor ---
 LOG_STD_MAX = 2
 LOG_STD_MIN = -5
 
@@ -200,6 +200,34 @@ class Actor(nn.Module):
         return torch.tanh(self(obs)[0]) * self.action_scale + self.action_bias
 
 
+def make_act_fn(actor: Actor, obs_dim: int, device, cudagraphs: bool):
+    """Returns act(obs: np.ndarray, deterministic: bool) -> np.ndarray, for one env step."""
+    def act(obs, deterministic=False):
+        with torch.no_grad():
+            o = torch.as_tensor(obs, dtype=torch.float32, device=device).unsqueeze(0)
+            a = actor.deterministic(o) if deterministic else actor.sample(o)[0]
+        return a[0].cpu().numpy()
+
+    if not cudagraphs:
+        return act
+    static_obs = torch.zeros(1, obs_dim, device=device)
+    graphs, outputs = {}, {}
+    for det in (False, True):
+        act(np.zeros(obs_dim), det)  # warm-up
+        graphs[det] = torch.cuda.CUDAGraph()
+        with torch.no_grad(), torch.cuda.graph(graphs[det]):
+            outputs[det] = actor.deterministic(static_obs) if det else actor.sample(static_obs)[0]
+
+    def act_graphed(obs, deterministic=False):
+        static_obs.copy_(torch.as_tensor(obs, dtype=torch.float32).unsqueeze(0))
+        graphs[deterministic].replay()
+        return outputs[deterministic][0].cpu().numpy()
+
+    return act_graphed
+# --- end shared: actor ---
+
+
+# --- shared: sac ---
 class TwinQ(nn.Module):
     """Two Q-networks as one module: every weight has a leading dimension of 2, so each layer of
     both critics is a single batched matmul. forward returns Q-values of shape (2, batch)."""
@@ -328,32 +356,6 @@ class ReplayBuffer:
     def load_state_dict(self, state):
         self.size, self.pos = state["size"], state["pos"]
         self.storage[: self.size].copy_(state["storage"])
-
-
-def make_act_fn(actor: Actor, obs_dim: int, device, cudagraphs: bool):
-    """Returns act(obs: np.ndarray, deterministic: bool) -> np.ndarray, for one env step."""
-    def act(obs, deterministic=False):
-        with torch.no_grad():
-            o = torch.as_tensor(obs, dtype=torch.float32, device=device).unsqueeze(0)
-            a = actor.deterministic(o) if deterministic else actor.sample(o)[0]
-        return a[0].cpu().numpy()
-
-    if not cudagraphs:
-        return act
-    static_obs = torch.zeros(1, obs_dim, device=device)
-    graphs, outputs = {}, {}
-    for det in (False, True):
-        act(np.zeros(obs_dim), det)  # warm-up
-        graphs[det] = torch.cuda.CUDAGraph()
-        with torch.no_grad(), torch.cuda.graph(graphs[det]):
-            outputs[det] = actor.deterministic(static_obs) if det else actor.sample(static_obs)[0]
-
-    def act_graphed(obs, deterministic=False):
-        static_obs.copy_(torch.as_tensor(obs, dtype=torch.float32).unsqueeze(0))
-        graphs[deterministic].replay()
-        return outputs[deterministic][0].cpu().numpy()
-
-    return act_graphed
 # --- end shared: sac ---
 
 

@@ -8,7 +8,7 @@ ROOT = Path(__file__).resolve().parents[1]
 BLOCK = re.compile(r"^# --- shared: (?P<name>[\w ]+) ---\n(?P<body>.*?)^# --- end shared: (?P=name) ---$", re.S | re.M)
 # expert.py holds the core blocks; every script holds those it needs
 REFERENCE = "expert.py"
-EXPECTED = {"env", "sac", "evaluation", "results", "checkpoint", "actor io", "demonstrations"}
+EXPECTED = {"env", "actor", "sac", "evaluation", "results", "checkpoint", "actor io", "demonstrations"}
 
 
 def blocks(path: Path) -> dict:
