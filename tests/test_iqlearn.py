@@ -1,0 +1,92 @@
+"""iqlearn.py: the loss terms against hand-computed values for both value variants, the presets, the done
+semantics, and a short run through every update path."""
+
+import json
+
+import numpy as np
+import pytest
+import torch
+
+import iqlearn
+from conftest import ROOT
+
+
+def constant_q(q, value):
+    with torch.no_grad():
+        for w, b in zip(q.weights, q.biases):
+            w.zero_()
+            b.zero_()
+        q.biases[-1].fill_(value)
+
+
+def agent_with(monkeypatch, value_loss):
+    args = iqlearn.Args(hidden_dim=8, value_loss=value_loss, alpha=0.1, gamma=0.9)
+    agent = iqlearn.IQLearn(2, 1, -np.ones(1), np.ones(1), args, "cpu")
+    constant_q(agent.q, 2.0)  # Q(s, a) = 2
+    constant_q(agent.q_target, 3.0)  # Q_targ(s, a) = 3
+    monkeypatch.setattr(agent.actor, "sample", lambda obs: (torch.zeros(len(obs), 1), torch.full((len(obs),), -1.0)))
+    return agent
+
+
+@pytest.mark.parametrize("value_loss", ["value", "v0"])
+def test_loss_terms_by_hand(monkeypatch, value_loss):
+    agent = agent_with(monkeypatch, value_loss)
+    obs, actions, next_obs = torch.zeros(4, 2), torch.zeros(4, 1), torch.zeros(4, 2)
+    dones = torch.tensor([0.0, 1.0, 0.0, 1.0])  # rows 0, 1: policy; rows 2, 3: expert
+    is_expert = torch.tensor([False, False, True, True])
+    loss, terms = agent.critic_loss(obs, actions, next_obs, dones, is_expert)
+    v_targ = 3.0 - 0.1 * -1.0  # Q_targ - alpha log pi = 3.1
+    y = np.array([0.9 * v_targ, 0.0, 0.9 * v_targ, 0.0])
+    r = 2.0 - y  # implicit rewards: 2 - 2.79 = -0.79 where not done, 2 where done
+    softq = -r[2:].mean()
+    v = 2.0 + 0.1  # V(s) = Q - alpha log pi
+    value = (v - y).mean() if value_loss == "value" else (1 - 0.9) * v
+    chi2 = 1 / (4 * 0.5) * (r**2).mean()
+    got = dict(zip(["softq", "value", "chi2", "q_expert", "q_policy", "r_expert", "r_policy"], terms.tolist()))
+    assert got["softq"] == pytest.approx(softq) and got["value"] == pytest.approx(value) and got["chi2"] == pytest.approx(chi2)
+    assert got["r_expert"] == pytest.approx(r[2:].mean()) and got["r_policy"] == pytest.approx(r[:2].mean())
+    assert loss.item() == pytest.approx(softq + value + chi2)
+
+
+def test_actor_loss_uses_both_batches_and_leaves_q_alone(monkeypatch):
+    agent = agent_with(monkeypatch, "value")
+    loss = agent.actor_loss(torch.zeros(6, 2))
+    assert loss.item() == pytest.approx(0.1 * -1.0 - 2.0)
+    torch.manual_seed(0)
+    fresh = iqlearn.IQLearn(2, 1, -np.ones(1), np.ones(1), iqlearn.Args(hidden_dim=8, value_loss="v0", alpha=0.1), "cpu")
+    fresh.actor_loss(torch.randn(5, 2)).backward()
+    assert all(p.grad is None for p in fresh.q.parameters())
+
+
+def test_update_steps_the_critic_actor_and_target():
+    torch.manual_seed(0)
+    args = iqlearn.Args(hidden_dim=8, value_loss="value", alpha=0.01)
+    agent = iqlearn.IQLearn(2, 1, -np.ones(1), np.ones(1), args, "cpu")
+    before = [p.clone() for p in agent.q_target.parameters()]
+    batch = lambda: (torch.randn(4, 2), torch.rand(4, 1), torch.randn(4, 2), torch.zeros(4))
+    metrics = agent.update(batch(), batch())
+    assert torch.isfinite(metrics).all() and len(metrics) == len(iqlearn.IQ_METRIC_NAMES)
+    for old, online, new in zip(before, agent.q.parameters(), agent.q_target.parameters()):
+        assert torch.allclose(new, 0.995 * old + 0.005 * online, atol=1e-6)
+
+
+def test_presets():
+    a = iqlearn.apply_preset(iqlearn.Args(env_id="Hopper-v4"))
+    assert (a.value_loss, a.alpha) == ("v0", 1e-2)
+    a = iqlearn.apply_preset(iqlearn.Args(env_id="HalfCheetah-v4", alpha=0.5))
+    assert (a.value_loss, a.alpha) == ("value", 0.5)  # explicit flags win
+    a = iqlearn.apply_preset(iqlearn.Args(env_id="Humanoid-v4", preset="none"))
+    assert (a.value_loss, a.alpha) == ("value", 1e-2)
+
+
+@pytest.mark.parametrize("timeout_done", [False, True])
+def test_end_to_end_and_done_semantics(run, tmp_path, timeout_done):
+    out = run("iqlearn.py", "--env-id", "InvertedPendulum-v4", "--total-timesteps", "1300", "--learning-starts", "300",
+              "--eval-freq", "650", "--eval-episodes", "2", "--hidden-dim", "32", "--batch-size", "32",
+              "--num-expert-trajs", "2", "--expert-path", str(ROOT / "experts/InvertedPendulum-v4.npz"), "--run-name", "iq",
+              *(["--timeout-done"] if timeout_done else [])).stdout
+    assert ("truncations count as done" if timeout_done else "only terminations are done") in out
+    results = json.loads((tmp_path / "runs/iq/results.json").read_text())
+    assert results["finished"] and [e["step"] for e in results["evals"]] == [650, 1300]
+    ckpt = torch.load(tmp_path / "runs/iq/checkpoint.pt", weights_only=False)
+    assert ckpt["q_optimizer"]["state"] and ckpt["actor_optimizer"]["state"]
