@@ -610,7 +610,8 @@ DISC_METRIC_NAMES = ["losses/disc_loss", "losses/disc_gp", "disc/expert_prob", "
 # --- end shared: discriminator ---
 
 
-# ALGO LOGIC: GAIL's reward
+# ALGO LOGIC: GAIL's reward and update (a block drail_disc.py shares)
+# --- shared: gail ---
 def gail_reward(logits, form: str):
     """The SAC reward from the discriminator's logit l (D = sigmoid(l)), computed stably."""
     if form == "softplus":
@@ -622,7 +623,7 @@ def gail_reward(logits, form: str):
     raise ValueError(f"unknown reward form '{form}'; choose softplus, logit or log-d")
 
 
-def gail_update(agent: "SAC", disc: Discriminator, rb: "ReplayBuffer", expert: dict, args) -> dict:
+def gail_update(agent: "SAC", disc: nn.Module, rb: "ReplayBuffer", expert: dict, args) -> dict:
     """One SAC update on rewards from the current discriminator, then one discriminator update."""
     obs, actions, next_obs, _env_reward, terminations = rb.split(rb.sample(args.batch_size))
     with torch.no_grad():
@@ -633,6 +634,7 @@ def gail_update(agent: "SAC", disc: Discriminator, rb: "ReplayBuffer", expert: d
     s, a = rb.split(rb.sample(args.disc_batch_size, recent=args.disc_buffer_size))[:2]
     out["disc"] = disc.update(torch.cat([expert["obs"][idx], expert["actions"][idx]], -1), torch.cat([s, a], -1))
     return out
+# --- end shared: gail ---
 
 
 if __name__ == "__main__":

@@ -657,7 +657,24 @@ DISC_METRIC_NAMES = ["losses/disc_loss", "losses/disc_gp", "disc/expert_prob", "
 # --- end shared: discriminator ---
 
 
-# ALGO LOGIC: RILe's rewards, the learned-reward dynamics metrics and the expert data
+# --- shared: expert data ---
+def expert_tensors(demos: dict, args, action_low, action_high, device) -> dict:
+    """The expert transitions as tensors, with the noise of the noise-robustness experiment added once."""
+    rng = np.random.default_rng(args.seed + 1)
+    obs, next_obs, actions = demos["observations"], demos["next_observations"], demos["actions"]
+    if args.expert_state_noise > 0:
+        obs = obs + rng.normal(0, args.expert_state_noise, obs.shape).astype(np.float32)
+        next_obs = next_obs + rng.normal(0, args.expert_state_noise, next_obs.shape).astype(np.float32)
+    if getattr(args, "expert_action_noise", 0.0) > 0:  # state-only methods have no such flag
+        actions = np.clip(actions + rng.normal(0, args.expert_action_noise, actions.shape), action_low, action_high)
+    as_tensor = lambda x: torch.as_tensor(np.asarray(x, dtype=np.float32), device=device)
+    return {"obs": as_tensor(obs), "actions": as_tensor(actions), "next_obs": as_tensor(next_obs),
+            "terminations": as_tensor(demos["terminations"])}
+# --- end shared: expert data ---
+
+
+# ALGO LOGIC: RILe's rewards and update (a block drail_disc.py shares), then the reward-dynamics metrics
+# --- shared: rile ---
 def trainer_reward(name: str, d, a_t):
     """The trainer's reward for discriminator output d = D(s, a_S) in (0, 1) and its action a_t in [-1, 1]."""
     v = 2 * d - 1
@@ -683,53 +700,6 @@ def student_reward(trainer_actor, obs, actions, remedy: str):
     return (1 + a_t) / 2 if remedy == "survival" else a_t
 
 
-def wasserstein_1d(x: np.ndarray, y: np.ndarray) -> float:
-    """W1 between two empirical distributions of the same size: mean |sorted x - sorted y|."""
-    assert len(x) == len(y), "RFDC compares intervals of equal length"
-    return float(np.abs(np.sort(x) - np.sort(y)).mean())
-
-
-def pearson(x: np.ndarray, y: np.ndarray) -> float:
-    x, y = x - x.mean(), y - y.mean()
-    denom = np.sqrt((x * x).sum() * (y * y).sum())
-    return float((x * y).sum() / denom) if denom > 0 else float("nan")
-
-
-class RewardDynamics:
-    """The paper's reward-function dynamics, every `freq` steps: RFDC, the W1 distance between the
-    learned rewards of consecutive intervals (each interval's transitions, scored at its end); FS-RFDC,
-    the mean absolute change of the learned reward on all expert pairs; CPR, the Pearson correlation of
-    the learned and the env rewards over the interval."""
-
-    def __init__(self):
-        self.prev_interval, self.prev_expert, self.history = None, None, []
-
-    def step(self, step: int, interval_rewards, interval_env_rewards, expert_rewards) -> dict:
-        cpr = pearson(interval_rewards, interval_env_rewards)
-        out = {"step": step, "cpr": None if np.isnan(cpr) else cpr,  # undefined when a reward is constant
-               "rfdc": wasserstein_1d(interval_rewards, self.prev_interval) if self.prev_interval is not None else None,
-               "fs_rfdc": float(np.abs(expert_rewards - self.prev_expert).mean()) if self.prev_expert is not None else None}
-        self.prev_interval, self.prev_expert = interval_rewards, expert_rewards
-        self.history.append(out)
-        return out
-
-
-# --- shared: expert data ---
-def expert_tensors(demos: dict, args, action_low, action_high, device) -> dict:
-    """The expert transitions as tensors, with the noise of the noise-robustness experiment added once."""
-    rng = np.random.default_rng(args.seed + 1)
-    obs, next_obs, actions = demos["observations"], demos["next_observations"], demos["actions"]
-    if args.expert_state_noise > 0:
-        obs = obs + rng.normal(0, args.expert_state_noise, obs.shape).astype(np.float32)
-        next_obs = next_obs + rng.normal(0, args.expert_state_noise, next_obs.shape).astype(np.float32)
-    if getattr(args, "expert_action_noise", 0.0) > 0:  # state-only methods have no such flag
-        actions = np.clip(actions + rng.normal(0, args.expert_action_noise, actions.shape), action_low, action_high)
-    as_tensor = lambda x: torch.as_tensor(np.asarray(x, dtype=np.float32), device=device)
-    return {"obs": as_tensor(obs), "actions": as_tensor(actions), "next_obs": as_tensor(next_obs),
-            "terminations": as_tensor(demos["terminations"])}
-# --- end shared: expert data ---
-
-
 def mix_expert(batch: tuple, expert: dict, fraction: float) -> tuple:
     """Replace the first `fraction` of a (obs, actions, next_obs, terminations) batch with expert pairs."""
     n = int(round(fraction * len(batch[0])))
@@ -740,11 +710,13 @@ def mix_expert(batch: tuple, expert: dict, fraction: float) -> tuple:
     return tuple(torch.cat([expert[k][idx], b[n:]]) for k, b in zip(keys, batch))
 
 
-def rile_update(student: "SAC", trainer: "SAC", disc: Discriminator, rb: "ReplayBuffer", expert: dict, args,
+def rile_update(student: "SAC", trainer: "SAC", disc: nn.Module, rb: "ReplayBuffer", expert: dict, args,
                 state: dict) -> dict:
     """One round of the paper's Algorithm 2: student, discriminator, trainer. `state` holds
     frozen (the trainer no longer learns), reward_only (covariate shift: neither trainer nor
-    discriminator learns), critic_loss_ema and trainer_updates. Returns {name: metrics tensor}."""
+    discriminator learns), critic_loss_ema and trainer_updates. `disc` is any discriminator with
+    prob(x) and update(expert_x, policy_x) (the GAIL-style one here, DRAIL's in drail_disc.py).
+    Returns {name: metrics tensor}."""
     out = {}
     # student: SAC on r_S = the current trainer's action on the sampled (s, a_S)
     obs, actions, next_obs, _env_reward, terminations = rb.split(rb.sample(args.batch_size))
@@ -777,6 +749,40 @@ def rile_update(student: "SAC", trainer: "SAC", disc: Discriminator, rb: "Replay
     state["critic_loss_ema"] = torch.lerp(state["critic_loss_ema"], loss, 0.01) if state["trainer_updates"] else loss
     state["trainer_updates"] += 1
     return out
+
+
+# --- end shared: rile ---
+
+
+def wasserstein_1d(x: np.ndarray, y: np.ndarray) -> float:
+    """W1 between two empirical distributions of the same size: mean |sorted x - sorted y|."""
+    assert len(x) == len(y), "RFDC compares intervals of equal length"
+    return float(np.abs(np.sort(x) - np.sort(y)).mean())
+
+
+def pearson(x: np.ndarray, y: np.ndarray) -> float:
+    x, y = x - x.mean(), y - y.mean()
+    denom = np.sqrt((x * x).sum() * (y * y).sum())
+    return float((x * y).sum() / denom) if denom > 0 else float("nan")
+
+
+class RewardDynamics:
+    """The paper's reward-function dynamics, every `freq` steps: RFDC, the W1 distance between the
+    learned rewards of consecutive intervals (each interval's transitions, scored at its end); FS-RFDC,
+    the mean absolute change of the learned reward on all expert pairs; CPR, the Pearson correlation of
+    the learned and the env rewards over the interval."""
+
+    def __init__(self):
+        self.prev_interval, self.prev_expert, self.history = None, None, []
+
+    def step(self, step: int, interval_rewards, interval_env_rewards, expert_rewards) -> dict:
+        cpr = pearson(interval_rewards, interval_env_rewards)
+        out = {"step": step, "cpr": None if np.isnan(cpr) else cpr,  # undefined when a reward is constant
+               "rfdc": wasserstein_1d(interval_rewards, self.prev_interval) if self.prev_interval is not None else None,
+               "fs_rfdc": float(np.abs(expert_rewards - self.prev_expert).mean()) if self.prev_expert is not None else None}
+        self.prev_interval, self.prev_expert = interval_rewards, expert_rewards
+        self.history.append(out)
+        return out
 
 
 def save_reward(path: str, trainer: "SAC", disc: Discriminator, args, obs_dim: int, act_dim: int) -> None:
