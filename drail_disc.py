@@ -681,7 +681,7 @@ def mix_expert(batch: tuple, expert: dict, fraction: float) -> tuple:
 def rile_update(student: "SAC", trainer: "SAC", disc: nn.Module, rb: "ReplayBuffer", expert: dict, args,
                 state: dict) -> dict:
     """One round of the paper's Algorithm 2: student, discriminator, trainer. `state` holds
-    frozen (the trainer no longer learns), reward_only (covariate shift: neither trainer nor
+    frozen_at (None, or the step from which the trainer no longer learns), reward_only (covariate shift: neither trainer nor
     discriminator learns), critic_loss_ema and trainer_updates. `disc` is any discriminator with
     prob(x) and update(expert_x, policy_x) (the GAIL-style one here, DRAIL's in drail_disc.py).
     Returns {name: metrics tensor}."""
@@ -698,7 +698,7 @@ def rile_update(student: "SAC", trainer: "SAC", disc: nn.Module, rb: "ReplayBuff
     idx = torch.randint(0, len(expert["obs"]), (args.disc_batch_size,), device=expert["obs"].device)
     s, a = rb.split(rb.sample(args.disc_batch_size, recent=args.disc_buffer_size))[:2]
     out["disc"] = disc.update(torch.cat([expert["obs"][idx], expert["actions"][idx]], -1), torch.cat([s, a], -1))
-    if state["frozen"]:
+    if state["frozen_at"] is not None:
         return out
     # trainer: SAC on o_T = (s, a_S), its stored action a_T, r_T from the current discriminator
     rows = rb.sample(args.trainer_batch_size, recent=args.trainer_buffer_size)
@@ -857,8 +857,7 @@ if __name__ == "__main__":
                                   args.num_draws).to(device)
     rb = ReplayBuffer(obs_dim, act_dim, args.buffer_size, device, extra_dim=1)
     learners = {"student": student, "trainer": trainer}
-    frozen_at = None
-    state = {"frozen": False, "reward_only": False, "trainer_updates": 0,
+    state = {"frozen_at": None, "reward_only": False, "trainer_updates": 0,
              "critic_loss_ema": torch.tensor(float("inf"), device=device)}
     evals, start_step, wall_offset = [], 0, 0.0
     if checkpoint:
@@ -871,7 +870,7 @@ if __name__ == "__main__":
         disc.optimizer.load_state_dict(checkpoint["disc_optimizer"])
         rb.load_state_dict(checkpoint["replay_buffer"])
         evals, start_step, wall_offset = checkpoint["evals"], checkpoint["global_step"], checkpoint["wall_time"]
-        frozen_at, state["frozen"] = checkpoint["frozen_at"], checkpoint["frozen_at"] is not None
+        state["frozen_at"] = checkpoint["frozen_at"]
         state["trainer_updates"] = checkpoint["trainer_updates"]
         state["critic_loss_ema"].fill_(checkpoint["critic_loss_ema"])
         set_rng_state(checkpoint["rng"])
@@ -883,7 +882,7 @@ if __name__ == "__main__":
     def checkpoint_state(step):
         ckpt = {"disc": disc.state_dict(), "disc_optimizer": disc.optimizer.state_dict(), "replay_buffer": rb.state_dict(),
                 "global_step": step, "evals": evals, "wall_time": wall_offset + time.time() - start_time,
-                "rng": rng_state(), "config": asdict(args), "run_name": run_name, "frozen_at": frozen_at,
+                "rng": rng_state(), "config": asdict(args), "run_name": run_name, "frozen_at": state["frozen_at"],
                 "trainer_updates": state["trainer_updates"], "critic_loss_ema": state["critic_loss_ema"].item()}
         for name, learner in learners.items():
             ckpt[name] = learner.state_dict()
@@ -930,11 +929,11 @@ if __name__ == "__main__":
                     writer.add_scalar(key, value, global_step)
                 writer.add_scalar("reward/learned_mean", metrics["reward"].item(), global_step)
                 writer.add_scalar("charts/SPS", sps, global_step)
-            if (rile_mode and global_step % 100 == 0 and args.trainer_freeze and frozen_at is None
+            if (rile_mode and global_step % 100 == 0 and args.trainer_freeze and state["frozen_at"] is None
                     and state["trainer_updates"] >= args.trainer_freeze_min_updates
                     and state["critic_loss_ema"].item() < args.trainer_freeze_threshold):
-                frozen_at, state["frozen"] = global_step, True
-                print(f"trainer frozen at step {frozen_at} (critic loss EMA {state['critic_loss_ema'].item():.4f})", flush=True)
+                state["frozen_at"] = global_step
+                print(f"trainer frozen at step {global_step} (critic loss EMA {state['critic_loss_ema'].item():.4f})", flush=True)
 
         step = global_step + 1
         if step % args.eval_freq == 0 or step == args.total_timesteps:
@@ -975,4 +974,4 @@ if __name__ == "__main__":
     if evals:
         print(f"done: {args.total_timesteps} steps in {format_time(wall_time)}, final eval return {evals[-1]['mean']:.1f} "
               f"+- {evals[-1]['std']:.1f} ({evals[-1]['normalized']:.2f} x expert {expert_return:.1f})"
-              + (f", trainer frozen at step {frozen_at}" if frozen_at else ""))
+              + (f", trainer frozen at step {state['frozen_at']}" if state["frozen_at"] else ""))

@@ -713,7 +713,7 @@ def mix_expert(batch: tuple, expert: dict, fraction: float) -> tuple:
 def rile_update(student: "SAC", trainer: "SAC", disc: nn.Module, rb: "ReplayBuffer", expert: dict, args,
                 state: dict) -> dict:
     """One round of the paper's Algorithm 2: student, discriminator, trainer. `state` holds
-    frozen (the trainer no longer learns), reward_only (covariate shift: neither trainer nor
+    frozen_at (None, or the step from which the trainer no longer learns), reward_only (covariate shift: neither trainer nor
     discriminator learns), critic_loss_ema and trainer_updates. `disc` is any discriminator with
     prob(x) and update(expert_x, policy_x) (the GAIL-style one here, DRAIL's in drail_disc.py).
     Returns {name: metrics tensor}."""
@@ -730,7 +730,7 @@ def rile_update(student: "SAC", trainer: "SAC", disc: nn.Module, rb: "ReplayBuff
     idx = torch.randint(0, len(expert["obs"]), (args.disc_batch_size,), device=expert["obs"].device)
     s, a = rb.split(rb.sample(args.disc_batch_size, recent=args.disc_buffer_size))[:2]
     out["disc"] = disc.update(torch.cat([expert["obs"][idx], expert["actions"][idx]], -1), torch.cat([s, a], -1))
-    if state["frozen"]:
+    if state["frozen_at"] is not None:
         return out
     # trainer: SAC on o_T = (s, a_S), its stored action a_T, r_T from the current discriminator
     rows = rb.sample(args.trainer_batch_size, recent=args.trainer_buffer_size)
@@ -847,12 +847,11 @@ if __name__ == "__main__":
     disc = Discriminator(obs_dim + act_dim, args.disc_hidden_dim, args.disc_lr, args.disc_gp).to(device)
     rb = ReplayBuffer(obs_dim, act_dim, args.buffer_size, device, extra_dim=1)
     learners = {"student": student, "trainer": trainer}
-    frozen_at = None  # the step the trainer froze at
-    state = {"frozen": False, "reward_only": bool(args.reward_from), "trainer_updates": 0,
+    state = {"frozen_at": None, "reward_only": bool(args.reward_from), "trainer_updates": 0,
              "critic_loss_ema": torch.tensor(float("inf"), device=device)}
     if args.reward_from:  # covariate shift: a frozen learned reward, only the student learns
         load_reward(args.reward_from, trainer, disc, args.env_id, obs_dim, act_dim)
-        frozen_at, state["frozen"] = 0, True
+        state["frozen_at"] = 0
     dynamics = RewardDynamics()
     evals, start_step, wall_offset = [], 0, 0.0
     if checkpoint:
@@ -865,7 +864,7 @@ if __name__ == "__main__":
         disc.optimizer.load_state_dict(checkpoint["disc_optimizer"])
         rb.load_state_dict(checkpoint["replay_buffer"])
         evals, start_step, wall_offset = checkpoint["evals"], checkpoint["global_step"], checkpoint["wall_time"]
-        frozen_at, state["frozen"] = checkpoint["frozen_at"], checkpoint["frozen_at"] is not None
+        state["frozen_at"] = checkpoint["frozen_at"]
         state["trainer_updates"] = checkpoint["trainer_updates"]
         state["critic_loss_ema"].fill_(checkpoint["critic_loss_ema"])
         dynamics.__dict__.update(checkpoint["dynamics"])
@@ -878,7 +877,7 @@ if __name__ == "__main__":
     def checkpoint_state(step):
         ckpt = {"disc": disc.state_dict(), "disc_optimizer": disc.optimizer.state_dict(), "replay_buffer": rb.state_dict(),
                 "global_step": step, "evals": evals, "wall_time": wall_offset + time.time() - start_time,
-                "rng": rng_state(), "config": asdict(args), "run_name": run_name, "frozen_at": frozen_at,
+                "rng": rng_state(), "config": asdict(args), "run_name": run_name, "frozen_at": state["frozen_at"],
                 "trainer_updates": state["trainer_updates"], "critic_loss_ema": state["critic_loss_ema"].item(),
                 "dynamics": dict(dynamics.__dict__)}
         for name, learner in learners.items():
@@ -941,14 +940,14 @@ if __name__ == "__main__":
                 if "trainer_reward" in metrics:
                     writer.add_scalar("reward/trainer_reward_mean", metrics["trainer_reward"].item(), global_step)
                 writer.add_scalar("trainer/critic_loss_ema", state["critic_loss_ema"].item(), global_step)
-                writer.add_scalar("trainer/frozen", float(frozen_at is not None), global_step)
+                writer.add_scalar("trainer/frozen", float(state["frozen_at"] is not None), global_step)
                 writer.add_scalar("charts/SPS", sps, global_step)
-            if (global_step % 100 == 0 and args.trainer_freeze and frozen_at is None  # .item() syncs: not every step
+            if (global_step % 100 == 0 and args.trainer_freeze and state["frozen_at"] is None  # .item() syncs: not every step
                     and state["trainer_updates"] >= args.trainer_freeze_min_updates
                     and state["critic_loss_ema"].item() < args.trainer_freeze_threshold):
-                frozen_at, state["frozen"] = global_step, True
-                writer.add_text("trainer/frozen_at", str(frozen_at), global_step)
-                print(f"trainer frozen at step {frozen_at} (critic loss EMA {state['critic_loss_ema'].item():.4f})", flush=True)
+                state["frozen_at"] = global_step
+                writer.add_text("trainer/frozen_at", str(global_step), global_step)
+                print(f"trainer frozen at step {global_step} (critic loss EMA {state['critic_loss_ema'].item():.4f})", flush=True)
 
         step = global_step + 1
         if args.dynamics_freq and step % args.dynamics_freq == 0 and step > args.learning_starts:
@@ -966,7 +965,7 @@ if __name__ == "__main__":
             last = (f"{evals[-1]['mean']:.1f} = {evals[-1]['normalized']:.2f} x expert {expert_return:.1f} "
                     f"(step {evals[-1]['step']})") if evals else "-"
             print(f"step {step}/{args.total_timesteps} | {sps:.0f} SPS | eval return {last} | trainer "
-                  f"{'frozen' if frozen_at is not None else 'learning'} | left "
+                  f"{'frozen' if state['frozen_at'] is not None else 'learning'} | left "
                   f"{format_time((args.total_timesteps - step) / sps) if sps > 0 else '?'}", flush=True)
         if stop.signum or (args.checkpoint_freq and step % args.checkpoint_freq == 0 and step < args.total_timesteps):
             save_checkpoint(os.path.join(run_dir, "checkpoint.pt"), checkpoint_state(step))
@@ -990,4 +989,4 @@ if __name__ == "__main__":
     if evals:
         print(f"done: {args.total_timesteps} steps in {format_time(wall_time)}, final eval return {evals[-1]['mean']:.1f} "
               f"+- {evals[-1]['std']:.1f} ({evals[-1]['normalized']:.2f} x expert {expert_return:.1f})"
-              + (f", trainer frozen at step {frozen_at}" if frozen_at else ""))
+              + (f", trainer frozen at step {state['frozen_at']}" if state["frozen_at"] else ""))

@@ -89,7 +89,7 @@ def test_drail_rile_gives_the_trainer_rile_py_reward(monkeypatch):
     seen = {}
     monkeypatch.setattr(trainer, "update", lambda *b: seen.update(b=b) or torch.zeros(6))
     expert = {k: torch.zeros(5, n) for k, n in (("obs", 2), ("actions", 1), ("next_obs", 2))} | {"terminations": torch.zeros(5)}
-    state = {"frozen": False, "reward_only": False, "trainer_updates": 0, "critic_loss_ema": torch.tensor(0.0)}
+    state = {"frozen_at": None, "reward_only": False, "trainer_updates": 0, "critic_loss_ema": torch.tensor(0.0)}
     drail_disc.rile_update(student, trainer, d, rb, expert, args, state)
     r_t = seen["b"][3]
     assert torch.allclose(r_t, rile.trainer_reward("exp-difference", torch.full((4,), 0.8), torch.full((4,), 0.5)))

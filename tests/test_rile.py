@@ -31,7 +31,7 @@ def learners(args):
         rb.add(np.full(OBS, i), np.full(ACT, 0.01 * i), np.full(OBS, i + 0.5), 1.0, i % 7 == 6, extra=[0.02 * i - 0.2])
     expert = {"obs": torch.full((10, OBS), 100.0) + torch.arange(10.0)[:, None], "actions": torch.full((10, ACT), 0.5),
               "next_obs": torch.full((10, OBS), 200.0), "terminations": torch.zeros(10)}
-    state = {"frozen": False, "reward_only": False, "trainer_updates": 0, "critic_loss_ema": torch.tensor(float("inf"))}
+    state = {"frozen_at": None, "reward_only": False, "trainer_updates": 0, "critic_loss_ema": torch.tensor(float("inf"))}
     return student, trainer, disc, rb, expert, state
 
 
@@ -125,7 +125,7 @@ def test_freezing_stops_trainer_updates_and_only_those():
     student, trainer, disc, rb, expert, state = learners(args)
     rile.rile_update(student, trainer, disc, rb, expert, args, state)
     assert state["trainer_updates"] == 1
-    state["frozen"] = True
+    state["frozen_at"] = 1
     before = {name: params(m) for name, m in (("student", student), ("trainer", trainer), ("disc", disc))}
     out = rile.rile_update(student, trainer, disc, rb, expert, args, state)
     assert not changed(before["trainer"], trainer) and state["trainer_updates"] == 1 and "trainer" not in out
