@@ -302,7 +302,8 @@ def report(results_dir: str = RESULTS_DIR, readme: Optional[str] = os.path.join(
     text = "\n".join(parts) or "No results yet.\n"
     text += ("\nFinal return: the last deterministic evaluation of each seed, mean ± standard error over seeds; "
              "normalized: return / the demonstrations' mean return; IQM: interquartile mean over seeds with a "
-             "95% percentile-bootstrap interval. Paper: the RILe paper's MuJoCo table (v2 envs).\n")
+             "95% percentile-bootstrap interval; steps: env steps, except bc.py's (gradient steps, no env "
+             "interaction). Paper: the RILe paper's MuJoCo table (v2 envs, its own training length).\n")
     if bad:
         text += "\nResults files skipped:\n" + "".join(f"- {b}\n" for b in bad)
         for b in bad:
