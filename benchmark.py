@@ -7,7 +7,8 @@
 
 Each job (script x env x seed) runs as its own process, `python <script> --env-id E --seed S
 --total-timesteps T --run-name bench__<E>__<algo>__<S> <extra args>`, writing to runs/<run-name>/.
-A job whose results file exists is skipped; a job with a checkpoint but no result is resumed
+A job whose results file exists for the same --total-timesteps is skipped; a job with a checkpoint but no
+such result is resumed (so a longer sweep extends shorter runs)
 (`--resume runs/<run-name>`), so a sweep spread over several sessions simply continues: run the same
 command again. Arguments that benchmark.py does not know pass through to the scripts; give such a
 variant its own `--tag` so that its results do not collide with the default's.
@@ -79,8 +80,14 @@ class Job:
 
 
 def job_state(job: Job, results_dir: str = RESULTS_DIR) -> str:
-    if os.path.exists(job.result_path(results_dir)):
-        return "done"
+    """done (a result of this length exists), running, interrupted (a checkpoint exists) or waiting.
+    A result of another --total-timesteps does not count: the job runs (or extends its checkpoint)."""
+    try:
+        with open(job.result_path(results_dir)) as f:
+            if json.load(f)["config"]["total_timesteps"] == job.total_timesteps:
+                return "done"
+    except (OSError, ValueError, KeyError):
+        pass
     lock = os.path.join(job.run_dir, "benchmark.lock")
     if os.path.exists(lock):
         try:

@@ -138,3 +138,15 @@ def test_unknown_script_is_a_clear_error(capsys):
     with pytest.raises(SystemExit):
         benchmark.main(["--scripts", "nope.py"])
     assert "no script 'nope.py'" in capsys.readouterr().err
+
+
+def test_a_result_of_another_length_does_not_count_as_done(tmp_path):
+    job = benchmark.Job("expert.py", "Hopper-v4", 1, 200_000, [])
+    path = tmp_path / "Hopper-v4" / "expert__1.json"
+    path.parent.mkdir()
+    path.write_text(json.dumps({"config": {"total_timesteps": 50_000}}))
+    assert benchmark.job_state(job, str(tmp_path)) == "waiting"
+    path.write_text(json.dumps({"config": {"total_timesteps": 200_000}}))
+    assert benchmark.job_state(job, str(tmp_path)) == "done"
+    path.write_text("{broken")
+    assert benchmark.job_state(job, str(tmp_path)) == "waiting"
