@@ -1,8 +1,8 @@
 """DRAIL's diffusion discriminator inside GAIL (DRAIL-GAIL) and inside RILe (DRAIL-RILe), on SAC.
 
 Papers: Lai et al., "Diffusion-Reward Adversarial Imitation Learning", NeurIPS 2024,
-https://arxiv.org/abs/2405.16194 (written from ../shared/ALGORITHMS.md §9; the authors' code has a
-non-commercial licence and was not copied); Albaba et al., "RILe: Reinforced Imitation Learning".
+https://arxiv.org/abs/2405.16194 (written from the paper and a description of the authors' code,
+whose licence is non-commercial; none of it was copied); Albaba et al., "RILe: Reinforced Imitation Learning".
 
 The discriminator is a conditional diffusion model: it predicts the noise added to x0 = (s, a),
 conditioned on a constant label vector (expert = ones, agent = zeros). A pair the model denoises better

@@ -1,8 +1,8 @@
 """IQ-Learn (online, chi^2): inverse soft-Q learning on the SAC machinery.
 
 Paper: Garg, Chakraborty, Cundy, Song & Ermon, "IQ-Learn: Inverse soft-Q Learning for Imitation",
-https://arxiv.org/abs/2106.12142 (written from the paper and ../shared/ALGORITHMS.md §8; the authors'
-code has an academic-use licence and was not copied).
+https://arxiv.org/abs/2106.12142 (written from the paper and a description of the
+authors' code, whose licence is academic-use only; none of it was copied).
 
 A single soft Q-function is learned directly from expert and policy data, with no discriminator and no
 reward network: the implicit reward is r(s, a) = Q(s, a) - gamma (1 - d) V(s'), with
@@ -708,7 +708,7 @@ if __name__ == "__main__":
                 writer.add_scalar("charts/SPS", sps, global_step)
                 if not torch.isfinite(metrics).all():
                     raise SystemExit(f"error: IQ-Learn's losses became NaN/inf at step {global_step}; try a larger "
-                                     f"--alpha or the other --value-loss (see ALGORITHMS.md §8 on divergence)")
+                                     f"--alpha or the other --value-loss (IQ-Learn's critic is known to diverge)")
 
         step = global_step + 1
         if step % args.eval_freq == 0 or step == args.total_timesteps:

@@ -30,8 +30,8 @@ Implementation choices and deviations
 6. Termination bias (the paper is silent): r_S = a_T can be negative, which pays the student to end
    episodes early on Hopper, Walker2d and Humanoid. `--termination-remedy none` is the paper-literal
    reward; `survival` rewards the student with (1 + a_T) / 2 in [0, 1] instead, the same ordering with
-   a non-negative sign (the minimal remedy of ../shared/ALGORITHMS.md §1.5). DAC-style absorbing states
-   are not implemented yet.
+   a non-negative sign, the default (a first Hopper-v4 measurement is in the README). DAC-style
+   absorbing states are not implemented yet.
 7. Epsilon-greedy (`--epsilon`, 0.2): with that probability the student takes a uniform random action.
    Student and trainer use a fixed temperature 0.2 (the paper's table), `--autotune` for the student.
 8. Experiments of the paper, as flags: `--trainer-reward` (six rewards of the ablation);
