@@ -28,7 +28,7 @@ Implementation choices and deviations
    `--cudagraphs` (GPU only: the whole update, optimiser steps included, and the acting forward pass
    are captured once in CUDA graphs and replayed), `--threads` (torch intra-op threads; default 2, the
    cores of the reference machine: 2 threads gave ~1.6x the updates/s of 1 there; see README).
-   On this CPU torch.compile made the update slower, so it is off by default (measured in README).
+   On this CPU torch.compile gave no reliable gain (0.75x-1.2x of eager), so it is off by default (README).
 6. Resume (`--resume runs/<run>`) restores networks, optimisers, temperature, replay buffer, step
    counter, RNG states and the evaluation history. The training episode in progress when the
    checkpoint was written is cut: the resumed run starts a new episode from a reset seeded by
@@ -90,7 +90,7 @@ class Args:
     threads: int = 2
     """torch intra-op threads on the CPU"""
     compile: bool = False
-    """torch.compile the SAC update (pays off on a GPU; modest on a CPU; compiling takes a minute)"""
+    """torch.compile the SAC update (no reliable gain measured on the 2-core CPU; compiling takes a minute)"""
     cudagraphs: bool = False
     """capture the update and the acting step in CUDA graphs (needs --cuda)"""
 
