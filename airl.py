@@ -22,6 +22,9 @@ Implementation choices and deviations
    of gail.py on f over random interpolates of expert and learner (s, a, s'). `--state-only` makes g a
    function of s alone (the paper's transfer variant).
 5. The learned reward g is saved to runs/<run>/reward.pt for reuse.
+6. `--termination-remedy absorbing` (DAC, as in gail.py): terminations lead to an absorbing state that
+   loops to itself, for learner and expert alike; nothing is terminal any more, so h(s') is never
+   masked and h(s_abs) is learned; log pi at the absorbing state is 0 (its only action is zero).
 
 Logged metrics: charts/episodic_return, charts/SPS, eval/return, eval/normalized_return,
 losses/{qf_loss,qf_values,actor_loss,alpha_loss,alpha,entropy}, losses/disc_loss, losses/disc_gp,
@@ -106,6 +109,9 @@ class Args:
     """the SAC reward: f = g(s, a) + gamma h(s') - h(s) (shaped), or the learned reward g alone"""
     state_only: bool = False
     """g depends on the state only (the paper's variant for transfer)"""
+    termination_remedy: Literal["none", "absorbing"] = "none"
+    """none: a termination ends bootstrapping (f can be negative, which may pay the learner to end
+    episodes early); absorbing: DAC's absorbing states for agent and expert data"""
     eval_freq: int = 10_000
     """evaluate the deterministic policy every this many env steps"""
     eval_episodes: int = 10
@@ -264,11 +270,17 @@ class TwinQ(nn.Module):
 
 
 class SAC(nn.Module):
-    """Actor, twin critics, target critics and the temperature, with one `update` per env step."""
+    """Actor, twin critics, target critics and the temperature, with one `update` per env step.
+    absorbing=True (DAC's absorbing states, `--termination-remedy absorbing` of the imitation scripts):
+    observations carry a last indicator column, 1 at the absorbing state that follows a termination.
+    The actor never sees that column; at the absorbing state the only action is zero, so it has no
+    entropy term and no actor or temperature loss."""
 
-    def __init__(self, obs_dim, act_dim, action_low, action_high, args, device, capturable: bool = False):
+    def __init__(self, obs_dim, act_dim, action_low, action_high, args, device, capturable: bool = False,
+                 absorbing: bool = False):
         super().__init__()
-        self.actor = Actor(obs_dim, act_dim, action_low, action_high, args.hidden_dim)
+        self.absorbing = absorbing
+        self.actor = Actor(obs_dim - absorbing, act_dim, action_low, action_high, args.hidden_dim)
         self.qf = TwinQ(obs_dim, act_dim, args.hidden_dim)
         self.qf_target = TwinQ(obs_dim, act_dim, args.hidden_dim)
         self.qf_target.load_state_dict(self.qf.state_dict())
@@ -282,11 +294,19 @@ class SAC(nn.Module):
         self.actor_optimizer = torch.optim.Adam(self.actor.parameters(), lr=args.policy_lr, **adam)
         self.alpha_optimizer = torch.optim.Adam([self.log_alpha], lr=args.policy_lr, **adam) if args.autotune else None
 
+    def policy(self, obs):
+        """a ~ pi(.|s) and log pi(a|s); with absorbing states, a = 0 and log pi = 0 where s is absorbing."""
+        if not self.absorbing:
+            return self.actor.sample(obs)
+        actions, log_pi = self.actor.sample(obs[:, :-1])
+        live = 1.0 - obs[:, -1]
+        return actions * live.unsqueeze(-1), log_pi * live
+
     @torch.no_grad()
     def td_target(self, next_obs, rewards, terminations):
         """r + gamma (1 - terminated) (min_i Q'_i(s', a') - alpha log pi(a'|s')), with a' ~ pi(.|s').
         Only a true termination stops bootstrapping; a time-limit truncation is stored as not terminated."""
-        next_actions, next_log_pi = self.actor.sample(next_obs)
+        next_actions, next_log_pi = self.policy(next_obs)
         next_q = self.qf_target(next_obs, next_actions).min(0).values - self.log_alpha.exp() * next_log_pi
         return rewards + (1.0 - terminations) * self.gamma * next_q
 
@@ -296,11 +316,15 @@ class SAC(nn.Module):
         return (q - target).pow(2).mean(1).sum(), q.mean()
 
     def actor_loss(self, obs):
-        actions, log_pi = self.actor.sample(obs)
+        actions, log_pi = self.policy(obs)
         q = self.qf(obs, actions, detach_params=True).min(0).values
-        actor_loss = (self.log_alpha.detach().exp() * log_pi - q).mean()
-        alpha_loss = -(self.log_alpha.exp() * (log_pi.detach() + self.target_entropy)).mean()
-        return actor_loss, alpha_loss, -log_pi.detach().mean()
+        mean = torch.mean
+        if self.absorbing:  # nothing to learn at the absorbing state: average over the other states
+            live = 1.0 - obs[:, -1]
+            mean = lambda x: (x * live).sum() / live.sum().clamp_min(1.0)
+        actor_loss = mean(self.log_alpha.detach().exp() * log_pi - q)
+        alpha_loss = -mean(self.log_alpha.exp() * (log_pi.detach() + self.target_entropy))
+        return actor_loss, alpha_loss, -mean(log_pi.detach())
 
     def update(self, obs, actions, next_obs, rewards, terminations):
         """One SAC step: critics, then actor and temperature on the updated critics, then targets.
@@ -573,6 +597,42 @@ def expert_tensors(demos: dict, args, action_low, action_high, device) -> dict:
 # --- end shared: expert data ---
 
 
+# --- shared: absorbing ---
+def absorbing_state(obs_dim: int) -> np.ndarray:
+    """DAC's absorbing state for observations of `obs_dim`: zeros, then the indicator column set to 1."""
+    s = np.zeros(obs_dim + 1, dtype=np.float32)
+    s[-1] = 1.0
+    return s
+
+
+def store(rb: "ReplayBuffer", obs, action, next_obs, reward, terminated, absorbing: bool, extra=(), absorbing_extra=()):
+    """Store one env transition. With absorbing states (DAC, Kostrikov et al. 2019) observations get an
+    indicator column (0); a termination leads to the absorbing state instead and is no longer terminal,
+    and the transition (absorbing state, zero action, absorbing state) is added after it, so ending an
+    episode is worth the learned reward of the absorbing state forever, not an implicit 0.
+    `absorbing_extra` fills the extra columns of that added row."""
+    if not absorbing:
+        rb.add(obs, action, next_obs, reward, terminated, extra)
+        return
+    s_abs = absorbing_state(len(obs))
+    rb.add(np.append(obs, 0.0), action, s_abs if terminated else np.append(next_obs, 0.0), reward, False, extra)
+    if terminated:
+        rb.add(s_abs, np.zeros_like(action), s_abs, 0.0, False, absorbing_extra)
+
+
+def absorbing_expert(expert: dict) -> dict:
+    """store()'s treatment applied to the demonstrations (a dict of tensors): the indicator column,
+    terminal transitions lead to the absorbing state, one absorbing self-loop per termination."""
+    obs, actions, next_obs, term = expert["obs"], expert["actions"], expert["next_obs"], expert["terminations"] > 0
+    s_abs = torch.as_tensor(absorbing_state(obs.shape[1]), device=obs.device)
+    loops = s_abs.expand(int(term.sum()), -1)
+    next_obs = torch.where(term.unsqueeze(-1), s_abs, F.pad(next_obs, (0, 1)))
+    return {**expert, "obs": torch.cat([F.pad(obs, (0, 1)), loops]), "next_obs": torch.cat([next_obs, loops]),
+            "actions": torch.cat([actions, actions.new_zeros(len(loops), actions.shape[1])]),
+            "terminations": obs.new_zeros(len(obs) + len(loops))}
+# --- end shared: absorbing ---
+
+
 
 
 # ALGO LOGIC: AIRL's discriminator
@@ -626,6 +686,13 @@ class AIRLDiscriminator(nn.Module):
 DISC_METRIC_NAMES = ["losses/disc_loss", "losses/disc_gp", "disc/expert_prob", "disc/policy_prob"]
 
 
+def policy_log_prob(agent: "SAC", obs, actions):
+    """log pi(a|s) under the current actor; 0 at absorbing states, where the only action is zero."""
+    if not agent.absorbing:
+        return agent.actor.log_prob(obs, actions)
+    return agent.actor.log_prob(obs[:, :-1], actions) * (1 - obs[:, -1])
+
+
 def airl_update(agent: "SAC", disc: AIRLDiscriminator, rb: "ReplayBuffer", expert: dict, args) -> dict:
     """One SAC update on f (or g) from the current discriminator, then one discriminator update."""
     obs, actions, next_obs, _env_reward, terminations = rb.split(rb.sample(args.batch_size))
@@ -638,8 +705,8 @@ def airl_update(agent: "SAC", disc: AIRLDiscriminator, rb: "ReplayBuffer", exper
     policy_batch = rb.split(rb.sample(args.disc_batch_size, recent=args.disc_buffer_size))
     policy_batch = (policy_batch[0], policy_batch[1], policy_batch[2], policy_batch[4])
     with torch.no_grad():  # log pi of the current policy, detached (expert actions clamped inside the box)
-        expert_log_pi = agent.actor.log_prob(expert_batch[0], expert_batch[1])
-        policy_log_pi = agent.actor.log_prob(policy_batch[0], policy_batch[1])
+        expert_log_pi = policy_log_prob(agent, expert_batch[0], expert_batch[1])
+        policy_log_pi = policy_log_prob(agent, policy_batch[0], policy_batch[1])
     out["disc"] = disc.update(expert_batch, policy_batch, expert_log_pi, policy_log_pi)
     return out
 
@@ -658,6 +725,9 @@ if __name__ == "__main__":
     low, high = env.action_space.low, env.action_space.high
     demos = load_demonstrations(args.expert_path or os.path.join("experts", f"{args.env_id}.npz"), env, args.num_expert_trajs)
     expert = expert_tensors(demos, args, low, high, device)
+    absorbing = args.termination_remedy == "absorbing"
+    if absorbing:
+        expert = absorbing_expert(expert)
     expert_return = float(demos["episode_returns"].mean())
 
     run_name = checkpoint["run_name"] if checkpoint else (
@@ -678,10 +748,11 @@ if __name__ == "__main__":
     print(f"AIRL reward: {args.reward}" + (" (state-only g)" if args.state_only else ""))
 
     # ALGO LOGIC: the learner, the discriminator and the replay buffer
-    agent = SAC(obs_dim, act_dim, low, high, args, device)
-    disc = AIRLDiscriminator(obs_dim, act_dim, args.disc_hidden_dim, args.gamma, args.state_only, args.disc_lr,
+    aug_dim = obs_dim + absorbing  # with absorbing states, every stored observation has the indicator column
+    agent = SAC(aug_dim, act_dim, low, high, args, device, absorbing=absorbing)
+    disc = AIRLDiscriminator(aug_dim, act_dim, args.disc_hidden_dim, args.gamma, args.state_only, args.disc_lr,
                              args.disc_gp).to(device)
-    rb = ReplayBuffer(obs_dim, act_dim, args.buffer_size, device)
+    rb = ReplayBuffer(aug_dim, act_dim, args.buffer_size, device)
     evals, start_step, wall_offset = [], 0, 0.0
     if checkpoint:
         agent.load_state_dict(checkpoint["agent"])
@@ -719,7 +790,7 @@ if __name__ == "__main__":
         else:
             action = act(obs)
         next_obs, reward, terminated, truncated, info = env.step(action)
-        rb.add(obs, action, next_obs, reward, terminated)  # the env reward is stored but never learned from
+        store(rb, obs, action, next_obs, reward, terminated, absorbing)  # the env reward is stored, never learned from
         obs = next_obs
         if terminated or truncated:
             writer.add_scalar("charts/episodic_return", info["episode"]["r"], global_step)
@@ -770,7 +841,8 @@ if __name__ == "__main__":
         save_actor(os.path.join(run_dir, "actor.pt"), agent.actor, args.env_id, obs_dim, act_dim, args.hidden_dim,
                    training_steps=args.total_timesteps)
         torch.save({"g": disc.g.state_dict(), "h": disc.h.state_dict(), "env_id": args.env_id, "obs_dim": obs_dim,
-                    "act_dim": act_dim, "hidden_dim": args.disc_hidden_dim, "state_only": args.state_only},
+                    "act_dim": act_dim, "hidden_dim": args.disc_hidden_dim, "state_only": args.state_only,
+                    "termination_remedy": args.termination_remedy},
                    os.path.join(run_dir, "reward.pt"))
         print(f"saved {run_dir}/actor.pt and the learned reward g (with h) {run_dir}/reward.pt")
     if args.capture_video:

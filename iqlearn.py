@@ -257,11 +257,17 @@ class TwinQ(nn.Module):
 
 
 class SAC(nn.Module):
-    """Actor, twin critics, target critics and the temperature, with one `update` per env step."""
+    """Actor, twin critics, target critics and the temperature, with one `update` per env step.
+    absorbing=True (DAC's absorbing states, `--termination-remedy absorbing` of the imitation scripts):
+    observations carry a last indicator column, 1 at the absorbing state that follows a termination.
+    The actor never sees that column; at the absorbing state the only action is zero, so it has no
+    entropy term and no actor or temperature loss."""
 
-    def __init__(self, obs_dim, act_dim, action_low, action_high, args, device, capturable: bool = False):
+    def __init__(self, obs_dim, act_dim, action_low, action_high, args, device, capturable: bool = False,
+                 absorbing: bool = False):
         super().__init__()
-        self.actor = Actor(obs_dim, act_dim, action_low, action_high, args.hidden_dim)
+        self.absorbing = absorbing
+        self.actor = Actor(obs_dim - absorbing, act_dim, action_low, action_high, args.hidden_dim)
         self.qf = TwinQ(obs_dim, act_dim, args.hidden_dim)
         self.qf_target = TwinQ(obs_dim, act_dim, args.hidden_dim)
         self.qf_target.load_state_dict(self.qf.state_dict())
@@ -275,11 +281,19 @@ class SAC(nn.Module):
         self.actor_optimizer = torch.optim.Adam(self.actor.parameters(), lr=args.policy_lr, **adam)
         self.alpha_optimizer = torch.optim.Adam([self.log_alpha], lr=args.policy_lr, **adam) if args.autotune else None
 
+    def policy(self, obs):
+        """a ~ pi(.|s) and log pi(a|s); with absorbing states, a = 0 and log pi = 0 where s is absorbing."""
+        if not self.absorbing:
+            return self.actor.sample(obs)
+        actions, log_pi = self.actor.sample(obs[:, :-1])
+        live = 1.0 - obs[:, -1]
+        return actions * live.unsqueeze(-1), log_pi * live
+
     @torch.no_grad()
     def td_target(self, next_obs, rewards, terminations):
         """r + gamma (1 - terminated) (min_i Q'_i(s', a') - alpha log pi(a'|s')), with a' ~ pi(.|s').
         Only a true termination stops bootstrapping; a time-limit truncation is stored as not terminated."""
-        next_actions, next_log_pi = self.actor.sample(next_obs)
+        next_actions, next_log_pi = self.policy(next_obs)
         next_q = self.qf_target(next_obs, next_actions).min(0).values - self.log_alpha.exp() * next_log_pi
         return rewards + (1.0 - terminations) * self.gamma * next_q
 
@@ -289,11 +303,15 @@ class SAC(nn.Module):
         return (q - target).pow(2).mean(1).sum(), q.mean()
 
     def actor_loss(self, obs):
-        actions, log_pi = self.actor.sample(obs)
+        actions, log_pi = self.policy(obs)
         q = self.qf(obs, actions, detach_params=True).min(0).values
-        actor_loss = (self.log_alpha.detach().exp() * log_pi - q).mean()
-        alpha_loss = -(self.log_alpha.exp() * (log_pi.detach() + self.target_entropy)).mean()
-        return actor_loss, alpha_loss, -log_pi.detach().mean()
+        mean = torch.mean
+        if self.absorbing:  # nothing to learn at the absorbing state: average over the other states
+            live = 1.0 - obs[:, -1]
+            mean = lambda x: (x * live).sum() / live.sum().clamp_min(1.0)
+        actor_loss = mean(self.log_alpha.detach().exp() * log_pi - q)
+        alpha_loss = -mean(self.log_alpha.exp() * (log_pi.detach() + self.target_entropy))
+        return actor_loss, alpha_loss, -mean(log_pi.detach())
 
     def update(self, obs, actions, next_obs, rewards, terminations):
         """One SAC step: critics, then actor and temperature on the updated critics, then targets.

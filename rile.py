@@ -30,8 +30,10 @@ Implementation choices and deviations
 6. Termination bias (the paper is silent): r_S = a_T can be negative, which pays the student to end
    episodes early on Hopper, Walker2d and Humanoid. `--termination-remedy none` is the paper-literal
    reward; `survival` rewards the student with (1 + a_T) / 2 in [0, 1] instead, the same ordering with
-   a non-negative sign, the default (a first Hopper-v4 measurement is in the README). DAC-style
-   absorbing states are not implemented yet.
+   a non-negative sign, the default (the Hopper-v4 measurements are in the README); `absorbing` keeps
+   r_S = a_T and adds DAC's absorbing states to the student's and the expert's data alike: a
+   termination leads to an absorbing state that loops to itself, whose reward the trainer learns from
+   D like any other pair's (see `store`; the trainer's transitions follow the student's).
 7. Epsilon-greedy (`--epsilon`, 0.2): with that probability the student takes a uniform random action.
    Student and trainer use a fixed temperature 0.2 (the paper's table), `--autotune` for the student.
 8. Experiments of the paper, as flags: `--trainer-reward` (six rewards of the ablation);
@@ -128,8 +130,9 @@ class Args:
     """width of the student's two hidden layers"""
     epsilon: float = 0.2
     """probability that the student takes a uniform random action (epsilon-greedy)"""
-    termination_remedy: Literal["none", "survival"] = "survival"
-    """none: r_S = a_T (paper); survival: r_S = (1 + a_T) / 2 >= 0, no reward for ending episodes early"""
+    termination_remedy: Literal["none", "survival", "absorbing"] = "survival"
+    """none: r_S = a_T (paper); survival: r_S = (1 + a_T) / 2 >= 0, no reward for ending episodes early;
+    absorbing: r_S = a_T with DAC's absorbing states for student and expert data"""
     eval_freq: int = 10_000
     """evaluate the deterministic student every this many env steps"""
     eval_episodes: int = 10
@@ -322,11 +325,17 @@ class TwinQ(nn.Module):
 
 
 class SAC(nn.Module):
-    """Actor, twin critics, target critics and the temperature, with one `update` per env step."""
+    """Actor, twin critics, target critics and the temperature, with one `update` per env step.
+    absorbing=True (DAC's absorbing states, `--termination-remedy absorbing` of the imitation scripts):
+    observations carry a last indicator column, 1 at the absorbing state that follows a termination.
+    The actor never sees that column; at the absorbing state the only action is zero, so it has no
+    entropy term and no actor or temperature loss."""
 
-    def __init__(self, obs_dim, act_dim, action_low, action_high, args, device, capturable: bool = False):
+    def __init__(self, obs_dim, act_dim, action_low, action_high, args, device, capturable: bool = False,
+                 absorbing: bool = False):
         super().__init__()
-        self.actor = Actor(obs_dim, act_dim, action_low, action_high, args.hidden_dim)
+        self.absorbing = absorbing
+        self.actor = Actor(obs_dim - absorbing, act_dim, action_low, action_high, args.hidden_dim)
         self.qf = TwinQ(obs_dim, act_dim, args.hidden_dim)
         self.qf_target = TwinQ(obs_dim, act_dim, args.hidden_dim)
         self.qf_target.load_state_dict(self.qf.state_dict())
@@ -340,11 +349,19 @@ class SAC(nn.Module):
         self.actor_optimizer = torch.optim.Adam(self.actor.parameters(), lr=args.policy_lr, **adam)
         self.alpha_optimizer = torch.optim.Adam([self.log_alpha], lr=args.policy_lr, **adam) if args.autotune else None
 
+    def policy(self, obs):
+        """a ~ pi(.|s) and log pi(a|s); with absorbing states, a = 0 and log pi = 0 where s is absorbing."""
+        if not self.absorbing:
+            return self.actor.sample(obs)
+        actions, log_pi = self.actor.sample(obs[:, :-1])
+        live = 1.0 - obs[:, -1]
+        return actions * live.unsqueeze(-1), log_pi * live
+
     @torch.no_grad()
     def td_target(self, next_obs, rewards, terminations):
         """r + gamma (1 - terminated) (min_i Q'_i(s', a') - alpha log pi(a'|s')), with a' ~ pi(.|s').
         Only a true termination stops bootstrapping; a time-limit truncation is stored as not terminated."""
-        next_actions, next_log_pi = self.actor.sample(next_obs)
+        next_actions, next_log_pi = self.policy(next_obs)
         next_q = self.qf_target(next_obs, next_actions).min(0).values - self.log_alpha.exp() * next_log_pi
         return rewards + (1.0 - terminations) * self.gamma * next_q
 
@@ -354,11 +371,15 @@ class SAC(nn.Module):
         return (q - target).pow(2).mean(1).sum(), q.mean()
 
     def actor_loss(self, obs):
-        actions, log_pi = self.actor.sample(obs)
+        actions, log_pi = self.policy(obs)
         q = self.qf(obs, actions, detach_params=True).min(0).values
-        actor_loss = (self.log_alpha.detach().exp() * log_pi - q).mean()
-        alpha_loss = -(self.log_alpha.exp() * (log_pi.detach() + self.target_entropy)).mean()
-        return actor_loss, alpha_loss, -log_pi.detach().mean()
+        mean = torch.mean
+        if self.absorbing:  # nothing to learn at the absorbing state: average over the other states
+            live = 1.0 - obs[:, -1]
+            mean = lambda x: (x * live).sum() / live.sum().clamp_min(1.0)
+        actor_loss = mean(self.log_alpha.detach().exp() * log_pi - q)
+        alpha_loss = -mean(self.log_alpha.exp() * (log_pi.detach() + self.target_entropy))
+        return actor_loss, alpha_loss, -mean(log_pi.detach())
 
     def update(self, obs, actions, next_obs, rewards, terminations):
         """One SAC step: critics, then actor and temperature on the updated critics, then targets.
@@ -673,6 +694,42 @@ def expert_tensors(demos: dict, args, action_low, action_high, device) -> dict:
 # --- end shared: expert data ---
 
 
+# --- shared: absorbing ---
+def absorbing_state(obs_dim: int) -> np.ndarray:
+    """DAC's absorbing state for observations of `obs_dim`: zeros, then the indicator column set to 1."""
+    s = np.zeros(obs_dim + 1, dtype=np.float32)
+    s[-1] = 1.0
+    return s
+
+
+def store(rb: "ReplayBuffer", obs, action, next_obs, reward, terminated, absorbing: bool, extra=(), absorbing_extra=()):
+    """Store one env transition. With absorbing states (DAC, Kostrikov et al. 2019) observations get an
+    indicator column (0); a termination leads to the absorbing state instead and is no longer terminal,
+    and the transition (absorbing state, zero action, absorbing state) is added after it, so ending an
+    episode is worth the learned reward of the absorbing state forever, not an implicit 0.
+    `absorbing_extra` fills the extra columns of that added row."""
+    if not absorbing:
+        rb.add(obs, action, next_obs, reward, terminated, extra)
+        return
+    s_abs = absorbing_state(len(obs))
+    rb.add(np.append(obs, 0.0), action, s_abs if terminated else np.append(next_obs, 0.0), reward, False, extra)
+    if terminated:
+        rb.add(s_abs, np.zeros_like(action), s_abs, 0.0, False, absorbing_extra)
+
+
+def absorbing_expert(expert: dict) -> dict:
+    """store()'s treatment applied to the demonstrations (a dict of tensors): the indicator column,
+    terminal transitions lead to the absorbing state, one absorbing self-loop per termination."""
+    obs, actions, next_obs, term = expert["obs"], expert["actions"], expert["next_obs"], expert["terminations"] > 0
+    s_abs = torch.as_tensor(absorbing_state(obs.shape[1]), device=obs.device)
+    loops = s_abs.expand(int(term.sum()), -1)
+    next_obs = torch.where(term.unsqueeze(-1), s_abs, F.pad(next_obs, (0, 1)))
+    return {**expert, "obs": torch.cat([F.pad(obs, (0, 1)), loops]), "next_obs": torch.cat([next_obs, loops]),
+            "actions": torch.cat([actions, actions.new_zeros(len(loops), actions.shape[1])]),
+            "terminations": obs.new_zeros(len(obs) + len(loops))}
+# --- end shared: absorbing ---
+
+
 # ALGO LOGIC: RILe's rewards and update (a block drail_disc.py shares), then the reward-dynamics metrics
 # --- shared: rile ---
 def trainer_reward(name: str, d, a_t):
@@ -742,7 +799,7 @@ def rile_update(student: "SAC", trainer: "SAC", disc: nn.Module, rb: "ReplayBuff
         if n_expert:  # expert pairs were never acted on by the trainer: a fresh a_T for them
             a_t = torch.cat([trainer.actor.sample(torch.cat([obs[:n_expert], actions[:n_expert]], -1))[0], a_t[n_expert:]])
         r_t = trainer_reward(args.trainer_reward, disc.prob(torch.cat([obs, actions], -1)), a_t.squeeze(-1))
-        next_actions = student.actor.sample(next_obs)[0]  # a'_S from the current student (choice 2)
+        next_actions = student.policy(next_obs)[0]  # a'_S from the current student (choice 2)
     out["trainer"] = trainer.update(torch.cat([obs, actions], -1), a_t, torch.cat([next_obs, next_actions], -1), r_t, terminations)
     out["trainer_reward"] = r_t.mean()
     loss = out["trainer"][0]
@@ -792,12 +849,16 @@ def save_reward(path: str, trainer: "SAC", disc: Discriminator, args, obs_dim: i
                 "disc_hidden_dim": args.disc_hidden_dim, "termination_remedy": args.termination_remedy}, path)
 
 
-def load_reward(path: str, trainer: "SAC", disc: Discriminator, env_id: str, obs_dim: int, act_dim: int) -> dict:
+def load_reward(path: str, trainer: "SAC", disc: Discriminator, env_id: str, obs_dim: int, act_dim: int,
+                remedy: str = "survival") -> dict:
     if not os.path.isfile(path):
         raise SystemExit(f"error: no saved reward at '{path}'; a finished rile.py run writes runs/<run>/reward.pt")
     saved = torch.load(path, map_location="cpu", weights_only=True)
     if (saved["env_id"], saved["obs_dim"], saved["act_dim"]) != (env_id, obs_dim, act_dim):
         raise SystemExit(f"error: reward '{path}' was learned on {saved['env_id']}, not {env_id}")
+    if saved["termination_remedy"] != remedy:
+        raise SystemExit(f"error: reward '{path}' was learned with --termination-remedy {saved['termination_remedy']}; "
+                         f"pass the same to train against it")
     trainer.actor.load_state_dict(saved["trainer_actor"])
     disc.load_state_dict(saved["disc"])
     return saved
@@ -820,6 +881,9 @@ if __name__ == "__main__":
     low, high = env.action_space.low, env.action_space.high
     demos = load_demonstrations(args.expert_path or os.path.join("experts", f"{args.env_id}.npz"), env, args.num_expert_trajs)
     expert = expert_tensors(demos, args, low, high, device)
+    absorbing = args.termination_remedy == "absorbing"
+    if absorbing:
+        expert = absorbing_expert(expert)
     expert_return = float(demos["episode_returns"].mean())
 
     run_name = checkpoint["run_name"] if checkpoint else (
@@ -839,18 +903,20 @@ if __name__ == "__main__":
     writer.add_text("hyperparameters", "|param|value|\n|-|-|\n" + "\n".join(f"|{k}|{v}|" for k, v in vars(args).items()))
 
     # ALGO LOGIC: the three learners and one buffer (the trainer's action a_T is its extra column)
-    student = SAC(obs_dim, act_dim, low, high, args, device)
+    aug_dim = obs_dim + absorbing  # with absorbing states, every stored observation has the indicator column
+    student = SAC(aug_dim, act_dim, low, high, args, device, absorbing=absorbing)
     trainer_args = dataclasses.replace(args, hidden_dim=args.trainer_hidden_dim, q_lr=args.trainer_lr,
                                        policy_lr=args.trainer_lr, alpha=args.trainer_alpha, autotune=False,
                                        gamma=args.trainer_gamma, tau=args.trainer_tau)
-    trainer = SAC(obs_dim + act_dim, 1, np.array([-1.0]), np.array([1.0]), trainer_args, device)
-    disc = Discriminator(obs_dim + act_dim, args.disc_hidden_dim, args.disc_lr, args.disc_gp).to(device)
-    rb = ReplayBuffer(obs_dim, act_dim, args.buffer_size, device, extra_dim=1)
+    # the trainer treats the absorbing state as any other observation: its action there is the student's reward
+    trainer = SAC(aug_dim + act_dim, 1, np.array([-1.0]), np.array([1.0]), trainer_args, device)
+    disc = Discriminator(aug_dim + act_dim, args.disc_hidden_dim, args.disc_lr, args.disc_gp).to(device)
+    rb = ReplayBuffer(aug_dim, act_dim, args.buffer_size, device, extra_dim=1)
     learners = {"student": student, "trainer": trainer}
     state = {"frozen_at": None, "reward_only": bool(args.reward_from), "trainer_updates": 0,
              "critic_loss_ema": torch.tensor(float("inf"), device=device)}
     if args.reward_from:  # covariate shift: a frozen learned reward, only the student learns
-        load_reward(args.reward_from, trainer, disc, args.env_id, obs_dim, act_dim)
+        load_reward(args.reward_from, trainer, disc, args.env_id, obs_dim, act_dim, args.termination_remedy)
         state["frozen_at"] = 0
     dynamics = RewardDynamics()
     evals, start_step, wall_offset = [], 0, 0.0
@@ -871,7 +937,8 @@ if __name__ == "__main__":
         set_rng_state(checkpoint["rng"])
         print(f"resumed {run_dir} at step {start_step} ({rb.size} transitions in the replay buffer)")
     act = make_act_fn(student.actor, obs_dim, device, cudagraphs=False)
-    trainer_act = make_act_fn(trainer.actor, obs_dim + act_dim, device, cudagraphs=False)
+    trainer_act = make_act_fn(trainer.actor, aug_dim + act_dim, device, cudagraphs=False)
+    trainer_obs = lambda s, a: np.concatenate([s, [0.0] * absorbing, a])  # (s, a_S), indicator 0 where used
     machine = machine_info(device)
 
     def checkpoint_state(step):
@@ -911,12 +978,13 @@ if __name__ == "__main__":
             action = env.action_space.sample()
         else:
             action = act(obs)
-        a_t = trainer_act(np.concatenate([obs, action]))  # the trainer acts on the student's pair
+        a_t = trainer_act(trainer_obs(obs, action))  # the trainer acts on the student's pair
         executed = action
         if args.student_action_noise > 0:
             executed = np.clip(action + np.random.normal(0, args.student_action_noise, act_dim), low, high).astype(np.float32)
         next_obs, reward, terminated, truncated, info = env.step(executed)
-        rb.add(obs, action, next_obs, reward, terminated, extra=a_t)  # the env reward is kept for CPR only
+        a_t_absorbing = trainer_act(np.append(absorbing_state(obs_dim), np.zeros(act_dim))) if absorbing and terminated else ()
+        store(rb, obs, action, next_obs, reward, terminated, absorbing, a_t, a_t_absorbing)  # env reward: for CPR only
         obs = next_obs
         if terminated or truncated:
             writer.add_scalar("charts/episodic_return", info["episode"]["r"], global_step)

@@ -95,9 +95,19 @@ def test_end_to_end(run, tmp_path):
               "--num-expert-trajs", "2", "--expert-path", str(ROOT / "experts/InvertedPendulum-v4.npz")]
     out = run("airl.py", *common, "--run-name", "a", "--expert-action-noise", "0.2").stdout
     assert "AIRL reward: f" in out
-    out = run("airl.py", *common, "--run-name", "b", "--reward", "g", "--state-only").stdout
+    out = run("airl.py", *common, "--run-name", "b", "--reward", "g", "--state-only", "--termination-remedy", "absorbing").stdout
     assert "AIRL reward: g (state-only g)" in out
     results = json.loads((tmp_path / "runs/b/results.json").read_text())
     assert results["finished"] and [e["step"] for e in results["evals"]] == [250, 500]
     saved = torch.load(tmp_path / "runs/b/reward.pt", weights_only=True)
-    assert saved["state_only"] and saved["g"]["0.weight"].shape[1] == 4  # g(s) of the 4-d state
+    assert saved["state_only"] and saved["g"]["0.weight"].shape[1] == 5  # g(s) of the 4-d state + absorbing indicator
+
+
+def test_log_pi_with_absorbing_states():
+    """The logit's log pi(a|s): the actor's on the state without its indicator, 0 at the absorbing state."""
+    torch.manual_seed(0)
+    agent = airl.SAC(3, 1, -np.ones(1), np.ones(1), airl.Args(hidden_dim=8), "cpu", absorbing=True)
+    obs = torch.tensor([[0.3, -0.4, 0.0], [0.0, 0.0, 1.0]])
+    actions = torch.tensor([[0.2], [0.0]])
+    log_pi = airl.policy_log_prob(agent, obs, actions)
+    assert log_pi[0].item() == pytest.approx(agent.actor.log_prob(obs[:1, :2], actions[:1]).item()) and log_pi[1].item() == 0.0

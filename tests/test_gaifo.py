@@ -55,9 +55,9 @@ def test_end_to_end(run, tmp_path):
     out = run("gaifo.py", "--env-id", "InvertedPendulum-v4", "--total-timesteps", "500", "--learning-starts", "200",
               "--eval-freq", "250", "--eval-episodes", "2", "--hidden-dim", "32", "--batch-size", "32",
               "--num-expert-trajs", "2", "--expert-path", str(ROOT / "experts/InvertedPendulum-v4.npz"),
-              "--expert-state-noise", "0.05", "--run-name", "g").stdout
+              "--expert-state-noise", "0.05", "--run-name", "g", "--termination-remedy", "absorbing").stdout
     assert "GAIfO reward: softplus" in out
     results = json.loads((tmp_path / "runs/g/results.json").read_text())
     assert results["finished"] and [e["step"] for e in results["evals"]] == [250, 500]
     ckpt = torch.load(tmp_path / "runs/g/checkpoint.pt", weights_only=False)
-    assert ckpt["disc"]["net.0.weight"].shape[1] == 2 * 4 and ckpt["disc_optimizer"]["state"]
+    assert ckpt["disc"]["net.0.weight"].shape[1] == 2 * (4 + 1) and ckpt["disc_optimizer"]["state"]  # (s, s') + indicators

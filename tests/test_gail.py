@@ -53,11 +53,15 @@ def test_end_to_end(run, tmp_path):
     out = run("gail.py", "--env-id", "InvertedPendulum-v4", "--total-timesteps", "500", "--learning-starts", "200",
               "--eval-freq", "250", "--eval-episodes", "2", "--hidden-dim", "32", "--batch-size", "32",
               "--num-expert-trajs", "2", "--expert-path", str(ROOT / "experts/InvertedPendulum-v4.npz"),
-              "--reward-form", "logit", "--expert-state-noise", "0.1", "--run-name", "g").stdout
+              "--reward-form", "logit", "--expert-state-noise", "0.1", "--run-name", "g",
+              "--termination-remedy", "absorbing").stdout  # DAC's combination: logit reward, absorbing states
     assert "GAIL reward: logit" in out
     results = json.loads((tmp_path / "runs/g/results.json").read_text())
     assert results["finished"] and [e["step"] for e in results["evals"]] == [250, 500]
     assert results["expert_return"] == pytest.approx(1000.0) and results["evals"][-1]["normalized"] is not None
     ckpt = torch.load(tmp_path / "runs/g/checkpoint.pt", weights_only=False)
     assert ckpt["disc_optimizer"]["state"] and ckpt["q_optimizer"]["state"]
+    assert ckpt["disc"]["net.0.weight"].shape[1] == 4 + 1 + 1  # (s, indicator, a) of InvertedPendulum
+    storage = ckpt["replay_buffer"]["storage"]
+    assert len(storage) > 500 and (storage[:, 4] == 1).sum() == len(storage) - 500  # one absorbing row per fall
     assert (tmp_path / "runs/g/reward.pt").exists() and (tmp_path / "runs/g/actor.pt").exists()

@@ -270,3 +270,19 @@ def test_resume_continues_the_run(run, tmp_path):
     assert results["finished"] and [e["step"] for e in results["evals"]] == [300, 600]
     ckpt = torch.load(tmp_path / "runs/res/checkpoint.pt", weights_only=False)
     assert ckpt["global_step"] == 600 and ckpt["replay_buffer"]["size"] == 600 and ckpt["trainer_updates"] == 400
+
+
+def test_absorbing_states_end_to_end(run, tmp_path):
+    """InvertedPendulum terminates often under random actions: every termination adds one absorbing row,
+    nothing stays terminal, and a reward learned this way is refused for a student without them."""
+    out = run("rile.py", *TINY, "--total-timesteps", "400", "--run-name", "abs", "--termination-remedy", "absorbing").stdout
+    assert "done: 400 steps" in out
+    buf = torch.load(tmp_path / "runs/abs/checkpoint.pt", weights_only=False)["replay_buffer"]
+    rb = rile.ReplayBuffer(5, 1, len(buf["storage"]), "cpu", extra_dim=1)
+    rb.load_state_dict(buf)
+    obs, _, next_obs, _, terms = rb.split(rb.storage[:rb.size])
+    n_absorbing = int((obs[:, -1] == 1).sum())
+    assert n_absorbing > 0 and rb.size == 400 + n_absorbing and not terms.any()
+    assert int((next_obs[:, -1] == 1).sum()) == 2 * n_absorbing  # the termination and the self-loop
+    proc = run("rile.py", *TINY, "--total-timesteps", "300", "--reward-from", "runs/abs/reward.pt", check=False)
+    assert proc.returncode != 0 and "learned with --termination-remedy absorbing" in proc.stderr
