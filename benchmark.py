@@ -239,8 +239,12 @@ def load_results(results_dir: str = RESULTS_DIR):
                 bad.append(f"{os.path.relpath(path, results_dir)}: {e}")
                 continue
             algo = name.rsplit("__", 1)[0]
-            grouped.setdefault(env_id, {}).setdefault(algo, []).append(r)
-    return grouped, bad
+            budget = r["config"].get("total_timesteps") or r["evals"][-1]["step"]
+            grouped.setdefault(env_id, {}).setdefault(algo, {}).setdefault(budget, []).append(r)
+    # runs of different lengths are never pooled: an algorithm with several gets a row per length
+    return {env_id: {(algo if len(by_budget) == 1 else f"{algo} ({budget // 1000}k)"): runs
+                     for algo, by_budget in algos.items() for budget, runs in sorted(by_budget.items())}
+            for env_id, algos in grouped.items()}, bad
 
 
 def summarize(runs: list) -> dict:
@@ -263,13 +267,13 @@ def env_table(env_id: str, algos: dict) -> str:
     paper = PAPER.get(env_id.split("-")[0], {})
     lines = ["| algorithm | seeds | final return | normalized | IQM [95% CI] | steps | wall time (h) | paper (v2) |",
              "|---|---|---|---|---|---|---|---|"]
-    for algo, runs in sorted(algos.items()):
+    for algo, runs in algos.items():  # by name, then by length
         s = summarize(runs)
         norm = fmt(s["normalized"], 3) if s["normalized"] else "-"
         digits = 3 if s["iqm_of"] == "normalized" else 1
         lines.append(f"| {algo} | {s['n']} | {fmt(s['return'])} | {norm} | {s['iqm']:.{digits}f} "
                      f"[{s['iqm_ci'][0]:.{digits}f}, {s['iqm_ci'][1]:.{digits}f}] | {s['steps']} | {s['wall_h']:.2f} | "
-                     f"{paper.get(algo.split('-')[0], '-')} |")
+                     f"{paper.get(algo.split(' ')[0].split('-')[0], '-')} |")
     return "\n".join(lines)
 
 
@@ -280,7 +284,7 @@ def plot_env(env_id: str, algos: dict, path: str) -> None:
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(6, 4))
-    for algo, runs in sorted(algos.items()):
+    for algo, runs in algos.items():  # by name, then by length
         steps = sorted(set.intersection(*[{e["step"] for e in r["evals"]} for r in runs]))  # steps every seed has
         curves = np.array([[{e["step"]: e["mean"] for e in r["evals"]}[s] for s in steps] for r in runs])
         mean = curves.mean(0)

@@ -78,6 +78,13 @@ def test_report_table_plot_and_readme(results_dir, tmp_path):
     assert (results_dir / "REPORT.md").read_text() == text
 
 
+def test_runs_of_different_lengths_get_their_own_rows(results_dir):
+    longer = fake_result("gail", 4, [0.0, 3900.0, 4000.0], 4000.0) | {"config": {"total_timesteps": 3000}}
+    (results_dir / "Hopper-v4" / "gail__4.json").write_text(json.dumps(longer))
+    text = benchmark.report(str(results_dir), readme=None)
+    assert "| gail (2k) | 3 | 2000.0 ± 577.4 |" in text and "| gail (3k) | 1 | 4000.0 | 1.000 |" in text
+
+
 def test_bad_results_files_are_named_not_crashed_on(results_dir, capsys):
     (results_dir / "Hopper-v4" / "broken__1.json").write_text("{not json")
     (results_dir / "Hopper-v4" / "partial__1.json").write_text(json.dumps({"algo": "partial"}))
