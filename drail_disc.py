@@ -113,8 +113,9 @@ class Args:
     """width of the student's two hidden layers"""
     epsilon: float = 0.2
     """rile: probability that the student takes a uniform random action (epsilon-greedy)"""
-    termination_remedy: Literal["none", "survival"] = "survival"
-    """rile: none: r_S = a_T (paper); survival: r_S = (1 + a_T) / 2"""
+    termination_remedy: Literal["none", "survival", "absorbing"] = "absorbing"
+    """absorbing: DAC's absorbing states for agent and expert data (both variants; rile.py's default);
+    none: terminations are terminal; survival (rile only): r_S = (1 + a_T) / 2"""
     reward_form: Literal["softplus", "logit", "log-d"] = "logit"
     """gail: the SAC reward from D's logit (logit = log D - log(1 - D), DRAIL's default)"""
     eval_freq: int = 10_000
@@ -634,6 +635,42 @@ def expert_tensors(demos: dict, args, action_low, action_high, device) -> dict:
 # --- end shared: expert data ---
 
 
+# --- shared: absorbing ---
+def absorbing_state(obs_dim: int) -> np.ndarray:
+    """DAC's absorbing state for observations of `obs_dim`: zeros, then the indicator column set to 1."""
+    s = np.zeros(obs_dim + 1, dtype=np.float32)
+    s[-1] = 1.0
+    return s
+
+
+def store(rb: "ReplayBuffer", obs, action, next_obs, reward, terminated, absorbing: bool, extra=(), absorbing_extra=()):
+    """Store one env transition. With absorbing states (DAC, Kostrikov et al. 2019) observations get an
+    indicator column (0); a termination leads to the absorbing state instead and is no longer terminal,
+    and the transition (absorbing state, zero action, absorbing state) is added after it, so ending an
+    episode is worth the learned reward of the absorbing state forever, not an implicit 0.
+    `absorbing_extra` fills the extra columns of that added row."""
+    if not absorbing:
+        rb.add(obs, action, next_obs, reward, terminated, extra)
+        return
+    s_abs = absorbing_state(len(obs))
+    rb.add(np.append(obs, 0.0), action, s_abs if terminated else np.append(next_obs, 0.0), reward, False, extra)
+    if terminated:
+        rb.add(s_abs, np.zeros_like(action), s_abs, 0.0, False, absorbing_extra)
+
+
+def absorbing_expert(expert: dict) -> dict:
+    """store()'s treatment applied to the demonstrations (a dict of tensors): the indicator column,
+    terminal transitions lead to the absorbing state, one absorbing self-loop per termination."""
+    obs, actions, next_obs, term = expert["obs"], expert["actions"], expert["next_obs"], expert["terminations"] > 0
+    s_abs = torch.as_tensor(absorbing_state(obs.shape[1]), device=obs.device)
+    loops = s_abs.expand(int(term.sum()), -1)
+    next_obs = torch.where(term.unsqueeze(-1), s_abs, F.pad(next_obs, (0, 1)))
+    return {**expert, "obs": torch.cat([F.pad(obs, (0, 1)), loops]), "next_obs": torch.cat([next_obs, loops]),
+            "actions": torch.cat([actions, actions.new_zeros(len(loops), actions.shape[1])]),
+            "terminations": obs.new_zeros(len(obs) + len(loops))}
+# --- end shared: absorbing ---
+
+
 # --- shared: gail ---
 def gail_reward(logits, form: str):
     """The SAC reward from the discriminator's logit l (D = sigmoid(l)), computed stably."""
@@ -843,6 +880,9 @@ if __name__ == "__main__":
     low, high = env.action_space.low, env.action_space.high
     demos = load_demonstrations(args.expert_path or os.path.join("experts", f"{args.env_id}.npz"), env, args.num_expert_trajs)
     expert = expert_tensors(demos, args, low, high, device)
+    absorbing = args.termination_remedy == "absorbing"
+    if absorbing:
+        expert = absorbing_expert(expert)
     expert_return = float(demos["episode_returns"].mean())
     rile_mode = args.student_reward == "rile"
 
@@ -865,15 +905,18 @@ if __name__ == "__main__":
           + ("" if rile_mode else f", SAC reward {args.reward_form} of D's logit"))
 
     # ALGO LOGIC: the student, the trainer (DRAIL-RILe only) and the diffusion discriminator
-    student = SAC(obs_dim, act_dim, low, high, args, device)
+    aug_dim = obs_dim + absorbing  # with absorbing states, every stored observation has the indicator column
+    student = SAC(aug_dim, act_dim, low, high, args, device, absorbing=absorbing)
     trainer_args = dataclasses.replace(args, hidden_dim=args.trainer_hidden_dim, q_lr=args.trainer_lr,
                                        policy_lr=args.trainer_lr, alpha=args.trainer_alpha, autotune=False,
                                        gamma=args.trainer_gamma, tau=args.trainer_tau)
-    trainer = SAC(obs_dim + act_dim, 1, np.array([-1.0]), np.array([1.0]), trainer_args, device)
-    disc = DiffusionDiscriminator(obs_dim, act_dim, args.disc_hidden_dim, args.diffusion_steps, args.disc_lr,
-                                  demos["observations"].mean(0), demos["observations"].std(0), args.shared_noise,
-                                  args.num_draws).to(device)
-    rb = ReplayBuffer(obs_dim, act_dim, args.buffer_size, device, extra_dim=1)
+    trainer = SAC(aug_dim + act_dim, 1, np.array([-1.0]), np.array([1.0]), trainer_args, device)
+    obs_mean, obs_std = demos["observations"].mean(0), demos["observations"].std(0)
+    if absorbing:  # the indicator column enters unscaled
+        obs_mean, obs_std = np.append(obs_mean, 0.0), np.append(obs_std, 1.0)
+    disc = DiffusionDiscriminator(aug_dim, act_dim, args.disc_hidden_dim, args.diffusion_steps, args.disc_lr,
+                                  obs_mean, obs_std, args.shared_noise, args.num_draws).to(device)
+    rb = ReplayBuffer(aug_dim, act_dim, args.buffer_size, device, extra_dim=1)
     learners = {"student": student, "trainer": trainer}
     state = {"frozen_at": None, "reward_only": False, "trainer_updates": 0,
              "critic_loss_ema": torch.tensor(float("inf"), device=device)}
@@ -894,7 +937,8 @@ if __name__ == "__main__":
         set_rng_state(checkpoint["rng"])
         print(f"resumed {run_dir} at step {start_step} ({rb.size} transitions in the replay buffer)")
     act = make_act_fn(student.actor, obs_dim, device, cudagraphs=False)
-    trainer_act = make_act_fn(trainer.actor, obs_dim + act_dim, device, cudagraphs=False)
+    trainer_act = make_act_fn(trainer.actor, aug_dim + act_dim, device, cudagraphs=False)
+    trainer_obs = lambda s, a: np.concatenate([s, [0.0] * absorbing, a])  # (s, a_S), indicator 0 where used
     machine = machine_info(device)
 
     def checkpoint_state(step):
@@ -920,9 +964,12 @@ if __name__ == "__main__":
             action = env.action_space.sample()
         else:
             action = act(obs)
-        a_t = trainer_act(np.concatenate([obs, action])) if rile_mode else np.zeros(1)
+        a_t = trainer_act(trainer_obs(obs, action)) if rile_mode else np.zeros(1)
         next_obs, reward, terminated, truncated, info = env.step(action)
-        rb.add(obs, action, next_obs, reward, terminated, extra=a_t)  # the env reward is never learned from
+        a_t_absorbing = np.zeros(1)
+        if rile_mode and absorbing and terminated:
+            a_t_absorbing = trainer_act(np.append(absorbing_state(obs_dim), np.zeros(act_dim)))
+        store(rb, obs, action, next_obs, reward, terminated, absorbing, a_t, a_t_absorbing)  # env reward: never learned from
         obs = next_obs
         if terminated or truncated:
             writer.add_scalar("charts/episodic_return", info["episode"]["r"], global_step)

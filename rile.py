@@ -30,7 +30,7 @@ Implementation choices and deviations
 6. Termination bias (the paper is silent): r_S = a_T can be negative, which pays the student to end
    episodes early on Hopper, Walker2d and Humanoid. `--termination-remedy none` is the paper-literal
    reward; `survival` rewards the student with (1 + a_T) / 2 in [0, 1] instead, the same ordering with
-   a non-negative sign, the default (the Hopper-v4 measurements are in the README); `absorbing` keeps
+   a non-negative sign; `absorbing` (the default: best of the three on Hopper-v4, see the README) keeps
    r_S = a_T and adds DAC's absorbing states to the student's and the expert's data alike: a
    termination leads to an absorbing state that loops to itself, whose reward the trainer learns from
    D like any other pair's (see `store`; the trainer's transitions follow the student's).
@@ -130,7 +130,7 @@ class Args:
     """width of the student's two hidden layers"""
     epsilon: float = 0.2
     """probability that the student takes a uniform random action (epsilon-greedy)"""
-    termination_remedy: Literal["none", "survival", "absorbing"] = "survival"
+    termination_remedy: Literal["none", "survival", "absorbing"] = "absorbing"
     """none: r_S = a_T (paper); survival: r_S = (1 + a_T) / 2 >= 0, no reward for ending episodes early;
     absorbing: r_S = a_T with DAC's absorbing states for student and expert data"""
     eval_freq: int = 10_000
@@ -850,7 +850,7 @@ def save_reward(path: str, trainer: "SAC", disc: Discriminator, args, obs_dim: i
 
 
 def load_reward(path: str, trainer: "SAC", disc: Discriminator, env_id: str, obs_dim: int, act_dim: int,
-                remedy: str = "survival") -> dict:
+                remedy: str = "absorbing") -> dict:
     if not os.path.isfile(path):
         raise SystemExit(f"error: no saved reward at '{path}'; a finished rile.py run writes runs/<run>/reward.pt")
     saved = torch.load(path, map_location="cpu", weights_only=True)

@@ -102,13 +102,19 @@ def test_end_to_end(run, tmp_path, variant):
               "--trainer-hidden-dim", "32", "--batch-size", "32", "--trainer-batch-size", "32", "--disc-hidden-dim", "64",
               "--disc-batch-size", "16", "--num-expert-trajs", "2", "--trainer-freeze-min-updates", "100",
               "--trainer-freeze-threshold", "1e9", "--expert-path", str(ROOT / "experts/InvertedPendulum-v4.npz"),
-              "--run-name", "d").stdout
+              "--run-name", "d", *(["--termination-remedy", "none"] if variant == "gail" else [])).stdout
     assert f"DRAIL-{'RILe' if variant == 'rile' else 'GAIL'}" in out
     assert ("trainer frozen at step 300" in out) == (variant == "rile")
     results = json.loads((tmp_path / "runs/d/results.json").read_text())
     assert results["finished"] and [e["step"] for e in results["evals"]] == [200, 400]
     ckpt = torch.load(tmp_path / "runs/d/checkpoint.pt", weights_only=False)
     assert ckpt["disc_optimizer"]["state"] and (ckpt["trainer_updates"] > 0) == (variant == "rile")
+    absorbing = variant == "rile"  # the default; DRAIL-GAIL ran with none
+    assert ckpt["disc"]["inp.weight"].shape[1] == 4 + absorbing + 1 + drail_disc.DiffusionDiscriminator.LABEL_DIM
+    storage = ckpt["replay_buffer"]["storage"]
+    assert (len(storage) > 400) == absorbing  # InvertedPendulum falls often: one absorbing row per fall
+    if absorbing:  # the indicator column is not standardised
+        assert ckpt["disc"]["shift"][4] == 0.0 and ckpt["disc"]["scale"][4] == 1.0
 
 
 def test_odd_discriminator_batch_is_refused(run):

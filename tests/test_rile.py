@@ -16,7 +16,8 @@ OBS, ACT = 3, 2
 
 def tiny_args(**kw):
     base = dict(hidden_dim=16, trainer_hidden_dim=16, batch_size=8, trainer_batch_size=8, disc_batch_size=4,
-                disc_hidden_dim=8, trainer_buffer_size=6, disc_buffer_size=6)
+                disc_hidden_dim=8, trainer_buffer_size=6, disc_buffer_size=6,
+                termination_remedy="survival")  # learners() below has no absorbing indicator
     return rile.Args(**(base | kw))
 
 
@@ -220,11 +221,11 @@ def test_saved_reward_round_trip(tmp_path):
     with torch.no_grad():
         for p in list(trainer2.actor.parameters()) + list(disc2.parameters()):
             p.add_(1.0)
-    rile.load_reward(str(tmp_path / "reward.pt"), trainer2, disc2, args.env_id, OBS, ACT)
+    rile.load_reward(str(tmp_path / "reward.pt"), trainer2, disc2, args.env_id, OBS, ACT, "survival")
     x = torch.randn(7, OBS + ACT)
     assert torch.equal(trainer2.actor.deterministic(x), trainer.actor.deterministic(x)) and torch.equal(disc2(x), disc(x))
     with pytest.raises(SystemExit, match="learned on Hopper-v4, not Walker2d-v4"):
-        rile.load_reward(str(tmp_path / "reward.pt"), trainer2, disc2, "Walker2d-v4", OBS, ACT)
+        rile.load_reward(str(tmp_path / "reward.pt"), trainer2, disc2, "Walker2d-v4", OBS, ACT, "survival")
 
 
 # ---------------------------------------------------------------- end to end
@@ -263,7 +264,7 @@ def test_demonstrations_of_another_env_are_refused(run):
 
 
 def test_resume_continues_the_run(run, tmp_path):
-    run("rile.py", *TINY, "--total-timesteps", "300", "--run-name", "res")
+    run("rile.py", *TINY, "--total-timesteps", "300", "--run-name", "res", "--termination-remedy", "survival")  # one row per step
     out = run("rile.py", *TINY, "--resume", "runs/res", "--total-timesteps", "600").stdout
     assert "resumed runs/res at step 300" in out
     results = json.loads((tmp_path / "runs/res/results.json").read_text())
@@ -284,5 +285,6 @@ def test_absorbing_states_end_to_end(run, tmp_path):
     n_absorbing = int((obs[:, -1] == 1).sum())
     assert n_absorbing > 0 and rb.size == 400 + n_absorbing and not terms.any()
     assert int((next_obs[:, -1] == 1).sum()) == 2 * n_absorbing  # the termination and the self-loop
-    proc = run("rile.py", *TINY, "--total-timesteps", "300", "--reward-from", "runs/abs/reward.pt", check=False)
+    proc = run("rile.py", *TINY, "--total-timesteps", "300", "--reward-from", "runs/abs/reward.pt",
+               "--termination-remedy", "survival", check=False)
     assert proc.returncode != 0 and "learned with --termination-remedy absorbing" in proc.stderr
