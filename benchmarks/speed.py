@@ -9,7 +9,7 @@ benchmarks/results/speed.json and prints a Markdown table.
 
     pip install stable-baselines3   # only for this benchmark
     python benchmarks/speed.py                       # expert.py (eager) vs SB3
-    python benchmarks/speed.py --variants eager compile rile --steps 5000
+    python benchmarks/speed.py --variants eager compile rile rile-frozen --steps 5000
 """
 
 import argparse
@@ -45,10 +45,14 @@ json.dump({"sps": steps / (time.perf_counter() - timer.t0)}, open(out, "w"))
 
 
 def run_script(variant: str, args, workdir: str) -> float:
-    """expert.py (eager / compile) or rile.py, on the project's demonstrations for rile.py."""
+    """expert.py (eager / compile) or rile.py, on the project's demonstrations for rile.py. rile-frozen:
+    rile.py with its trainer frozen from the first updates on, the regime of a run once the trainer
+    has converged (student and discriminator updates only)."""
+    rile = ["--expert-path", os.path.join(ROOT, "experts", f"{args.env_id}.npz"), "--dynamics-freq", "0"]
     script, flags = {"eager": ("expert.py", ["--no-record-demos"]), "compile": ("expert.py", ["--no-record-demos", "--compile"]),
-                     "rile": ("rile.py", ["--expert-path", os.path.join(ROOT, "experts", f"{args.env_id}.npz"),
-                                          "--dynamics-freq", "0"])}[variant]
+                     "rile": ("rile.py", rile),
+                     "rile-frozen": ("rile.py", rile + ["--trainer-freeze-min-updates", "0",
+                                                        "--trainer-freeze-threshold", "1e9"])}[variant]
     cmd = [sys.executable, "-W", "ignore", os.path.join(ROOT, script), "--env-id", args.env_id,
            "--total-timesteps", str(args.learning_starts + args.steps), "--learning-starts", str(args.learning_starts),
            "--eval-freq", str(10**9), "--eval-episodes", "1", "--checkpoint-freq", "0", "--no-save-model",
@@ -73,7 +77,7 @@ def main():
     parser.add_argument("--steps", type=int, default=3000, help="timed env steps after learning starts")
     parser.add_argument("--threads", type=int, default=2, help="torch intra-op threads for both")
     parser.add_argument("--repeats", type=int, default=3, help="alternating runs of each; medians are reported")
-    parser.add_argument("--variants", nargs="+", default=["eager"], choices=["eager", "compile", "rile"])
+    parser.add_argument("--variants", nargs="+", default=["eager"], choices=["eager", "compile", "rile", "rile-frozen"])
     parser.add_argument("--out", default=os.path.join(ROOT, "benchmarks", "results", "speed.json"))
     args = parser.parse_args()
 
@@ -83,7 +87,8 @@ def main():
     import expert
 
     # the machine's speed drifts (shared host): alternate the implementations and report medians
-    names = {"eager": "expert.py (eager)", "compile": "expert.py (compile)", "rile": "rile.py"}
+    names = {"eager": "expert.py (eager)", "compile": "expert.py (compile)", "rile": "rile.py",
+             "rile-frozen": "rile.py, trainer frozen"}
     runs = {"sb3": []} | {names[v]: [] for v in args.variants}
     variant_of = {name: v for v, name in names.items()}
     with tempfile.TemporaryDirectory() as workdir:
