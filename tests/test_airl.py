@@ -101,6 +101,12 @@ def test_end_to_end(run, tmp_path):
     assert results["finished"] and [e["step"] for e in results["evals"]] == [250, 500]
     saved = torch.load(tmp_path / "runs/b/reward.pt", weights_only=True)
     assert saved["state_only"] and saved["g"]["0.weight"].shape[1] == 5  # g(s) of the 4-d state + absorbing indicator
+    # the reward check reads the checkpoint: f on the demonstrations, on the learner, and what falling is worth
+    out = run("benchmarks/airl_rewards.py", "runs/b").stdout
+    assert "at step 500" in out and "f on the demonstrations" in out and "f on the learner's living" in out
+    assert ("worth of falling" in out) or ("no falls" in out)
+    proc = run("benchmarks/airl_rewards.py", "runs/a", check=False)  # a run without absorbing states
+    assert proc.returncode != 0 and "--termination-remedy none" in proc.stderr
 
 
 def test_log_pi_with_absorbing_states():

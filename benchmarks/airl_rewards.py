@@ -1,0 +1,68 @@
+"""What airl.py's reward f pays, read from a checkpoint: on the demonstrations, on the learner's recent
+replay transitions, and at the absorbing state. Answers "is falling worth more than living?" for a run
+with `--termination-remedy absorbing`: staying in the absorbing state forever is worth f_abs / (1 - gamma).
+
+    python benchmarks/airl_rewards.py runs/bench__Hopper-v4__airl-absorbing__1 [--recent 20000]
+"""
+
+import argparse
+import dataclasses
+import os
+import sys
+
+import gymnasium as gym
+import torch
+
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+import airl  # noqa: E402
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("run_dir")
+    parser.add_argument("--recent", type=int, default=20000, help="how many of the newest replay transitions")
+    cli = parser.parse_args()
+    torch.set_num_threads(1)
+    ckpt = airl.load_checkpoint(cli.run_dir)
+    names = {f.name for f in dataclasses.fields(airl.Args)}
+    args = airl.Args(**{k: v for k, v in ckpt["config"].items() if k in names})
+    if args.termination_remedy != "absorbing":
+        sys.exit(f"error: {cli.run_dir} was trained with --termination-remedy {args.termination_remedy}; "
+                 "this check is for absorbing-state runs")
+    env = gym.make(args.env_id)
+    obs_dim, act_dim = env.observation_space.shape[0], env.action_space.shape[0]
+    low, high, device = env.action_space.low, env.action_space.high, torch.device("cpu")
+    agent = airl.SAC(obs_dim + 1, act_dim, low, high, args, device, absorbing=True)
+    agent.load_state_dict(ckpt["agent"])
+    disc = airl.AIRLDiscriminator(obs_dim + 1, act_dim, args.disc_hidden_dim, args.gamma, args.state_only,
+                                  args.disc_lr, args.disc_gp)
+    disc.load_state_dict(ckpt["disc"])
+    rb = airl.ReplayBuffer(obs_dim + 1, act_dim, args.buffer_size, device)
+    rb.load_state_dict(ckpt["replay_buffer"])
+    demos = airl.load_demonstrations(args.expert_path or os.path.join("experts", f"{args.env_id}.npz"), env,
+                                     args.num_expert_trajs)
+    expert = airl.absorbing_expert(airl.expert_tensors(demos, args, low, high, device))
+
+    with torch.no_grad():
+        f_expert = disc(expert["obs"], expert["actions"], expert["next_obs"], expert["terminations"])
+        obs, actions, next_obs, _, terms = rb.split(rb.storage[max(0, rb.size - cli.recent):rb.size])
+        f_policy = disc(obs, actions, next_obs, terms)
+    at_abs = obs[:, -1] > 0
+    into_abs = (next_obs[:, -1] > 0) & ~at_abs
+    living = ~at_abs & ~into_abs
+    horizon = 1 / (1 - args.gamma)
+    print(f"{cli.run_dir} at step {ckpt['global_step']}, gamma {args.gamma}")
+    print(f"f on the demonstrations:              mean {f_expert.mean():8.2f}  std {f_expert.std():6.2f}")
+    print(f"f on the learner's living transitions: mean {f_policy[living].mean():8.2f}  std {f_policy[living].std():6.2f}"
+          f"  (newest {len(obs)} of the replay buffer)")
+    if at_abs.any():
+        print(f"f into the absorbing state:           mean {f_policy[into_abs].mean():8.2f}  ({int(into_abs.sum())} falls)")
+        print(f"f at the absorbing state:             mean {f_policy[at_abs].mean():8.2f}")
+        print(f"worth of falling, f_abs / (1 - gamma): {f_policy[at_abs].mean() * horizon:9.1f}; of living at the "
+              f"learner's mean f: {f_policy[living].mean() * horizon:9.1f}")
+    else:
+        print("no falls among these transitions")
+
+
+if __name__ == "__main__":
+    main()
