@@ -1,4 +1,5 @@
-"""Env steps per second after learning starts: expert.py's SAC (and rile.py) against Stable-Baselines3's SAC.
+"""Env steps per second after learning starts: expert.py's SAC, rile.py and the baselines on SAC, against
+Stable-Baselines3's SAC.
 
 Both run on Hopper-v4 with the same hyperparameters (batch 256, 256-256 ReLU, buffer 1e6, lr 3e-4,
 gamma 0.99, tau 0.005, autotuned entropy, one gradient step per env step, `--learning-starts` random
@@ -10,6 +11,10 @@ benchmarks/results/speed.json and prints a Markdown table.
     pip install stable-baselines3   # only for this benchmark
     python benchmarks/speed.py                       # expert.py (eager) vs SB3
     python benchmarks/speed.py --variants eager compile rile rile-frozen --steps 5000
+    python benchmarks/speed.py --variants gail airl gaifo iqlearn drail-gail drail-rile
+
+Each script runs with its own defaults (the paper's settings), so the baselines' figures include their
+discriminator updates; drail-* use DRAIL's width 1024 unless `--drail-width` says otherwise.
 """
 
 import argparse
@@ -45,14 +50,19 @@ json.dump({"sps": steps / (time.perf_counter() - timer.t0)}, open(out, "w"))
 
 
 def run_script(variant: str, args, workdir: str) -> float:
-    """expert.py (eager / compile) or rile.py, on the project's demonstrations for rile.py. rile-frozen:
+    """expert.py (eager / compile), or an imitation script on the project's demonstrations. rile-frozen:
     rile.py with its trainer frozen from the first updates on, the regime of a run once the trainer
     has converged (student and discriminator updates only)."""
-    rile = ["--expert-path", os.path.join(ROOT, "experts", f"{args.env_id}.npz"), "--dynamics-freq", "0"]
+    demos = ["--expert-path", os.path.join(ROOT, "experts", f"{args.env_id}.npz")]
+    rile = demos + ["--dynamics-freq", "0"]
+    drail = demos + ["--disc-hidden-dim", str(args.drail_width)]
     script, flags = {"eager": ("expert.py", ["--no-record-demos"]), "compile": ("expert.py", ["--no-record-demos", "--compile"]),
                      "rile": ("rile.py", rile),
                      "rile-frozen": ("rile.py", rile + ["--trainer-freeze-min-updates", "0",
-                                                        "--trainer-freeze-threshold", "1e9"])}[variant]
+                                                        "--trainer-freeze-threshold", "1e9"]),
+                     "gail": ("gail.py", demos), "airl": ("airl.py", demos), "gaifo": ("gaifo.py", demos),
+                     "iqlearn": ("iqlearn.py", demos), "drail-gail": ("drail_disc.py", drail + ["--student-reward", "gail"]),
+                     "drail-rile": ("drail_disc.py", drail + ["--student-reward", "rile"])}[variant]
     cmd = [sys.executable, "-W", "ignore", os.path.join(ROOT, script), "--env-id", args.env_id,
            "--total-timesteps", str(args.learning_starts + args.steps), "--learning-starts", str(args.learning_starts),
            "--eval-freq", str(10**9), "--eval-episodes", "1", "--checkpoint-freq", "0", "--no-save-model",
@@ -60,6 +70,11 @@ def run_script(variant: str, args, workdir: str) -> float:
     subprocess.run(cmd, cwd=workdir, check=True, capture_output=True)
     with open(os.path.join(workdir, "runs", f"speed_{variant}", "results.json")) as f:
         return json.load(f)["sps"]
+
+
+NAMES = {"eager": "expert.py (eager)", "compile": "expert.py (compile)", "rile": "rile.py",
+         "rile-frozen": "rile.py, trainer frozen", "gail": "gail.py", "airl": "airl.py", "gaifo": "gaifo.py",
+         "iqlearn": "iqlearn.py", "drail-gail": "drail_disc.py (GAIL)", "drail-rile": "drail_disc.py (RILe)"}
 
 
 def run_sb3(args, workdir: str) -> float:
@@ -77,7 +92,8 @@ def main():
     parser.add_argument("--steps", type=int, default=3000, help="timed env steps after learning starts")
     parser.add_argument("--threads", type=int, default=2, help="torch intra-op threads for both")
     parser.add_argument("--repeats", type=int, default=3, help="alternating runs of each; medians are reported")
-    parser.add_argument("--variants", nargs="+", default=["eager"], choices=["eager", "compile", "rile", "rile-frozen"])
+    parser.add_argument("--variants", nargs="+", default=["eager"], choices=list(NAMES))
+    parser.add_argument("--drail-width", type=int, default=1024, help="drail_disc.py's --disc-hidden-dim")
     parser.add_argument("--out", default=os.path.join(ROOT, "benchmarks", "results", "speed.json"))
     args = parser.parse_args()
 
@@ -87,10 +103,8 @@ def main():
     import expert
 
     # the machine's speed drifts (shared host): alternate the implementations and report medians
-    names = {"eager": "expert.py (eager)", "compile": "expert.py (compile)", "rile": "rile.py",
-             "rile-frozen": "rile.py, trainer frozen"}
-    runs = {"sb3": []} | {names[v]: [] for v in args.variants}
-    variant_of = {name: v for v, name in names.items()}
+    runs = {"sb3": []} | {NAMES[v]: [] for v in args.variants}
+    variant_of = {name: v for v, name in NAMES.items()}
     with tempfile.TemporaryDirectory() as workdir:
         for repeat in range(args.repeats):
             for name in runs:
@@ -102,7 +116,7 @@ def main():
     record = {
         "what": "env steps per second after learning starts, evaluation excluded",
         "env_id": args.env_id, "learning_starts": args.learning_starts, "timed_steps": args.steps,
-        "repeats": args.repeats, "sps_runs": runs, "sps": results, "ratio_to_sb3": {k: v / results["sb3"] for k, v in results.items() if k != "sb3"},
+        "repeats": args.repeats, "drail_width": args.drail_width, "sps_runs": runs, "sps": results, "ratio_to_sb3": {k: v / results["sb3"] for k, v in results.items() if k != "sb3"},
         "machine": {"cpu": expert.cpu_name(), "cpu_count": os.cpu_count(),
                     "torch": torch.__version__, "threads": args.threads, "python": platform.python_version()},
         "git_commit": git.stdout.strip() or None, "date": time.strftime("%Y-%m-%d %H:%M"),
