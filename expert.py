@@ -135,6 +135,11 @@ class Args:
     """demonstration episode i starts from env.reset(seed=demo_seed + i)"""
     demo_path: Optional[str] = None
     """where to write the demonstrations (default: experts/<env_id>.npz)"""
+    full_episodes_only: bool = False
+    """keep only episodes that reach the time limit (try seeds demo_seed, demo_seed + 1, ... until
+    num_demos are kept); the metadata records every episode tried"""
+    max_demo_tries: int = 200
+    """with --full-episodes-only, give up after this many episodes"""
 
 
 # --- shared: env ---
@@ -603,25 +608,40 @@ def load_demonstrations(path: str, env: gym.Env, num_trajs: Optional[int] = None
 # --- end shared: demonstrations ---
 
 
-def record_demonstrations(act, env_id: str, num_episodes: int, seed: int) -> dict:
-    """Run the deterministic policy for `num_episodes` episodes from resets seeded seed + i."""
+def record_demonstrations(act, env_id: str, num_episodes: int, seed: int, full_episodes_only: bool = False,
+                          max_tries: int = 200) -> tuple[dict, list]:
+    """Run the deterministic policy on resets seeded seed + i, i = 0, 1, ..., until `num_episodes` are kept.
+
+    With `full_episodes_only`, an episode that terminates (falls) before the time limit is discarded;
+    Returns the demonstrations and every episode run as (reset seed, length, return, kept)."""
     env = make_env(env_id, seed)
     keys = ("observations", "actions", "next_observations", "rewards", "terminations", "truncations")
     buf = {k: [] for k in keys}
-    starts, lengths, returns = [], [], []
-    for i in range(num_episodes):
+    starts, lengths, returns, tried = [], [], [], []
+    i = 0
+    while len(lengths) < num_episodes:
+        if i >= max_tries:
+            raise SystemExit(f"error: only {len(lengths)} of {i} episodes reached the time limit; "
+                             f"train the expert longer or raise --max-demo-tries")
         obs, _ = env.reset(seed=seed + i)
-        starts.append(len(buf["rewards"]))
+        episode = {k: [] for k in keys}
         done, ep_return = False, 0.0
         while not done:
             action = act(obs, deterministic=True)
             next_obs, reward, terminated, truncated, _ = env.step(action)
             for k, v in zip(keys, (obs, action, next_obs, reward, terminated, truncated)):
-                buf[k].append(v)
+                episode[k].append(v)
             ep_return += float(reward)
             obs, done = next_obs, terminated or truncated
-        lengths.append(len(buf["rewards"]) - starts[-1])
-        returns.append(ep_return)
+        keep = not (full_episodes_only and terminated)
+        tried.append((seed + i, len(episode["rewards"]), ep_return, keep))
+        i += 1
+        if keep:
+            starts.append(len(buf["rewards"]))
+            for k in keys:
+                buf[k].extend(episode[k])
+            lengths.append(len(episode["rewards"]))
+            returns.append(ep_return)
     env.close()
     demos = {k: np.asarray(v, dtype=np.float32) for k, v in buf.items() if k not in ("terminations", "truncations")}
     demos["terminations"] = np.asarray(buf["terminations"], dtype=bool)
@@ -629,7 +649,7 @@ def record_demonstrations(act, env_id: str, num_episodes: int, seed: int) -> dic
     demos["episode_starts"] = np.asarray(starts, dtype=np.int64)
     demos["episode_lengths"] = np.asarray(lengths, dtype=np.int64)
     demos["episode_returns"] = np.asarray(returns, dtype=np.float64)
-    return demos
+    return demos, tried
 
 
 def save_demonstrations(path: str, demos: dict, metadata: dict) -> None:
@@ -641,14 +661,24 @@ def record_and_save(act, actor: Actor, args, training_steps: int, source: str, o
     import mujoco
 
     demo_path = args.demo_path or os.path.join("experts", f"{args.env_id}.npz")
-    demos = record_demonstrations(act, args.env_id, args.num_demos, args.demo_seed)
+    demos, tried = record_demonstrations(act, args.env_id, args.num_demos, args.demo_seed, args.full_episodes_only,
+                                         args.max_demo_tries)
     returns = demos["episode_returns"]
+    all_returns = np.array([t[2] for t in tried])
+    if args.full_episodes_only:
+        selection = (f"the first {args.num_demos} episodes of the deterministic policy (tanh of the mean) that "
+                     f"reached the time limit, trying resets seeded {args.demo_seed}, {args.demo_seed} + 1, ...: "
+                     f"{len(tried) - args.num_demos} of {len(tried)} tried fell first and were discarded")
+    else:
+        selection = (f"the first {args.num_demos} episodes of the deterministic policy (tanh of the mean), "
+                     f"episode i reset with seed {args.demo_seed} + i; no episode filtered out")
     metadata = {
         "env_id": args.env_id, "gymnasium_version": gym.__version__, "mujoco_version": mujoco.__version__,
         "torch_version": torch.__version__, "expert_training_steps": training_steps, "expert_source": source,
         "training_seed": args.seed, "demo_seed": args.demo_seed, "num_episodes": args.num_demos,
-        "selection": f"the first {args.num_demos} episodes of the deterministic policy (tanh of the mean), "
-                     f"episode i reset with seed {args.demo_seed} + i; no episode filtered out",
+        "selection": selection,
+        "episodes_tried": [{"reset_seed": a, "length": b, "return": c, "kept": d} for a, b, c, d in tried],
+        "tried_return_mean": float(all_returns.mean()), "tried_return_std": float(all_returns.std()),
         "return_mean": float(returns.mean()), "return_std": float(returns.std()),
         "return_min": float(returns.min()), "return_max": float(returns.max()),
         "actions": "env units (the env's action box), as sent to env.step",
@@ -659,8 +689,9 @@ def record_and_save(act, actor: Actor, args, training_steps: int, source: str, o
     if os.path.abspath(actor_path) != os.path.abspath(source):
         save_actor(actor_path, actor, args.env_id, obs_dim, act_dim, args.hidden_dim, training_steps=training_steps)
     check = load_demonstrations(demo_path, make_env(args.env_id, args.seed))  # round trip
-    print(f"recorded {len(check['episode_lengths'])} episodes, {len(check['rewards'])} transitions, return "
-          f"{returns.mean():.1f} +- {returns.std():.1f} (min {returns.min():.1f}) -> {demo_path}, {actor_path}")
+    print(f"recorded {len(check['episode_lengths'])} episodes ({len(tried)} tried), {len(check['rewards'])} "
+          f"transitions, return {returns.mean():.1f} +- {returns.std():.1f} (min {returns.min():.1f}) -> "
+          f"{demo_path}, {actor_path}")
 
 
 if __name__ == "__main__":

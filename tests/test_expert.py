@@ -10,6 +10,7 @@ import time
 
 import numpy as np
 import pytest
+import gymnasium as gym
 import torch
 
 import expert
@@ -250,7 +251,7 @@ def demo_file(tmp_path_factory):
     env = expert.make_env("InvertedPendulum-v4", 0)
     actor = expert.Actor(4, 1, env.action_space.low, env.action_space.high, 16)
     act = expert.make_act_fn(actor, 4, "cpu", cudagraphs=False)
-    demos = expert.record_demonstrations(act, "InvertedPendulum-v4", 3, seed=7)
+    demos, _ = expert.record_demonstrations(act, "InvertedPendulum-v4", 3, seed=7)
     path = tmp_path_factory.mktemp("demos") / "InvertedPendulum-v4.npz"
     expert.save_demonstrations(str(path), demos, {"env_id": "InvertedPendulum-v4", "selection": "test"})
     return path, demos
@@ -285,10 +286,40 @@ def test_demonstrations_are_seeded():
     env_id = "InvertedPendulum-v4"
     actor = expert.Actor(4, 1, -np.ones(1) * 3, np.ones(1) * 3, 16)
     act = expert.make_act_fn(actor, 4, "cpu", cudagraphs=False)
-    a, b = (expert.record_demonstrations(act, env_id, 2, seed=5) for _ in range(2))
-    c = expert.record_demonstrations(act, env_id, 2, seed=6)
+    a, b = (expert.record_demonstrations(act, env_id, 2, seed=5)[0] for _ in range(2))
+    c, _ = expert.record_demonstrations(act, env_id, 2, seed=6)
     assert np.array_equal(a["observations"], b["observations"])
     assert not np.array_equal(a["observations"][0], c["observations"][0])
+
+
+def test_full_episodes_only_discards_falls_and_records_every_try():
+    """This untrained actor keeps InvertedPendulum up for 7 or 8 steps; with the time limit at 7, the
+    8-step episodes are truncated (kept) and the 7-step ones terminate at the limit (discarded)."""
+    env_id = "InvertedPendulum-v4"
+    torch.manual_seed(3)
+    actor = expert.Actor(4, 1, -np.ones(1) * 3, np.ones(1) * 3, 16)
+    act = expert.make_act_fn(actor, 4, "cpu", cudagraphs=False)
+    original = expert.make_env
+    expert.make_env = lambda env_id, seed, render_mode=None: gym.wrappers.TimeLimit(
+        gym.make(env_id).unwrapped, max_episode_steps=7)
+    try:
+        everything, tried_all = expert.record_demonstrations(act, env_id, 8, seed=0)
+        demos, tried = expert.record_demonstrations(act, env_id, 3, seed=0, full_episodes_only=True)
+        with pytest.raises(SystemExit, match="reached the time limit"):
+            expert.record_demonstrations(act, env_id, 50, seed=0, full_episodes_only=True, max_tries=8)
+    finally:
+        expert.make_env = original
+    ends = everything["episode_starts"] + everything["episode_lengths"] - 1
+    fell = everything["terminations"][ends]
+    assert 3 <= (~fell).sum() < 8, "the test needs both falls and full episodes among the first eight"
+    assert all(keep for *_, keep in tried_all) and len(tried_all) == 8
+    assert tried == [(s, n, r, not f) for (s, n, r, _), f in zip(tried_all, fell)][:len(tried)]
+    assert sum(keep for *_, keep in tried) == 3 and tried[-1][3]
+    assert not demos["terminations"].any() and demos["truncations"].sum() == 3
+    assert demos["episode_returns"].tolist() == [r for (_, _, r, _), f in zip(tried_all, fell) if not f][:3]
+    kept0 = [k for k, (*_, keep) in enumerate(tried) if keep][0]
+    start = everything["episode_starts"][kept0]
+    assert np.array_equal(demos["observations"][:7], everything["observations"][start:start + 7])
 
 
 # ---------------------------------------------------------------- errors users see
