@@ -347,6 +347,13 @@ def pearson(x: np.ndarray, y: np.ndarray) -> float:
     return float((x * y).sum() / denom) if denom > 0 else float("nan")
 
 
+def reward_file(trainer: "SAC", disc: "Discriminator", args, obs_dim: int, act_dim: int) -> dict:
+    """What reward.pt holds: the learned reward (the trainer's actor gives r_S) and the discriminator."""
+    return {"trainer_actor": trainer.actor.state_dict(), "disc": disc.state_dict(), "env_id": args.env_id,
+            "obs_dim": obs_dim, "act_dim": act_dim, "trainer_hidden_dim": args.trainer_hidden_dim,
+            "disc_hidden_dim": args.disc_hidden_dim, "termination_remedy": args.termination_remedy}
+
+
 def load_reward(path: str, trainer: "SAC", disc: "Discriminator", env_id: str, obs_dim: int, act_dim: int,
                 remedy: str = "absorbing") -> dict:
     """A saved reward.pt (the trainer's actor and the discriminator) into `trainer` and `disc`, with clear errors."""
@@ -982,10 +989,7 @@ if __name__ == "__main__":
             log_dynamics(step)
         run.end_step(step, agent.actor.act, status=f" | trainer {'frozen' if state['frozen_at'] is not None else 'learning'}")
 
-    reward_file = {"trainer_actor": trainer.actor.state_dict(), "disc": disc.state_dict(), "env_id": args.env_id,
-                   "obs_dim": obs_dim, "act_dim": act_dim, "trainer_hidden_dim": args.trainer_hidden_dim,
-                   "disc_hidden_dim": args.disc_hidden_dim, "termination_remedy": args.termination_remedy}
     run.finish(agent.actor.act, {"actor.pt": actor_file(agent.actor, args.env_id, training_steps=args.total_timesteps),
-                                 "reward.pt": reward_file},
+                                 "reward.pt": reward_file(trainer, disc, args, obs_dim, act_dim)},
                status=f", trainer frozen at step {state['frozen_at']}" if state["frozen_at"] else "")
     env.close()
