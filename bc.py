@@ -19,8 +19,10 @@ Implementation choices and deviations
    actor with the lowest held-out loss is saved as actor_best.pt (early stopping by selection);
    actor.pt is the final one.
 3. The deterministic policy (tanh of the mean) is evaluated in the env every `--eval-freq` gradient
-   steps; results.json's "step" counts gradient steps.
-4. No checkpoints: a run of the default length takes minutes on a CPU.
+   steps; results.json's "step" counts gradient steps, and each evaluation holds its "holdout_loss".
+4. Checkpoints as in the other scripts (every `--checkpoint-freq` gradient steps, on Ctrl-C / SIGTERM
+   and at the end; `--resume runs/<run>`). No env is stepped while learning, so a resumed run goes on
+   exactly as one that never stopped.
 
 Logged metrics: losses/train, losses/holdout, eval/return, eval/normalized_return, charts/SPS (gradient
 steps per second).
@@ -30,9 +32,10 @@ import json
 import os
 import platform
 import random
-import subprocess
+import signal
+import sys
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, fields
 from typing import Literal, Optional
 
 import gymnasium as gym
@@ -48,7 +51,7 @@ class Args:
     exp_name: str = "bc"
     """the name of this experiment"""
     seed: int = 1
-    """seed of the experiment (python, numpy, torch, env resets)"""
+    """seed of the experiment (python, numpy, torch, env resets, action space)"""
     torch_deterministic: bool = True
     """sets `torch.backends.cudnn.deterministic`"""
     cuda: bool = False
@@ -65,6 +68,11 @@ class Args:
     """save the final actor (actor.pt) and the best held-out one (actor_best.pt)"""
     run_name: Optional[str] = None
     """run directory under runs/ (default: {env_id}__{exp_name}__{seed}__{unix_time})"""
+    resume: Optional[str] = None
+    """continue the run saved in this run directory (or checkpoint file); its config is reused,
+    except total_timesteps, cuda and threads when given on the command line"""
+    checkpoint_freq: int = 50_000
+    """write a resumable checkpoint every this many gradient steps (and on Ctrl-C / SIGTERM); 0 disables"""
     threads: int = 2
     """torch intra-op threads on the CPU"""
 
@@ -93,6 +101,28 @@ class Args:
     """demonstrations (default: experts/<env_id>.npz)"""
     num_expert_trajs: int = 25
     """use the first this many demonstration episodes"""
+
+
+# ALGO LOGIC: the BC loss and the held-out split
+def bc_loss(actor: "Actor", obs, actions, kind: str):
+    """Mean -log pi(a_E|s) (actions clamped inside the box) or mean squared error of tanh(mean)."""
+    if kind == "nll":
+        return -actor.log_prob(obs, actions).mean()
+    if kind == "mse":
+        return (actor.deterministic(obs) - actions).pow(2).sum(-1).mean()
+    raise ValueError(f"unknown loss '{kind}'; choose nll or mse")
+
+
+def holdout_split(demos: dict, fraction: float):
+    """Row indices (train, held out): the last whole episodes, or the last transitions of a single one."""
+    starts, lengths = demos["episode_starts"], demos["episode_lengths"]
+    n = int(lengths.sum())
+    if len(lengths) >= 2:
+        k = max(1, int(round(fraction * len(lengths))))
+        cut = int(starts[len(lengths) - k])
+    else:
+        cut = n - max(1, int(round(fraction * n)))
+    return np.arange(cut), np.arange(cut, n)
 
 
 # --- shared: env ---
@@ -128,9 +158,7 @@ class Actor(nn.Module):
 
     def __init__(self, obs_dim: int, act_dim: int, action_low, action_high, hidden_dim: int = 256):
         super().__init__()
-        self.net = nn.Sequential(
-            nn.Linear(obs_dim, hidden_dim), nn.ReLU(), nn.Linear(hidden_dim, hidden_dim), nn.ReLU()
-        )
+        self.net = nn.Sequential(nn.Linear(obs_dim, hidden_dim), nn.ReLU(), nn.Linear(hidden_dim, hidden_dim), nn.ReLU())
         self.fc_mean = nn.Linear(hidden_dim, act_dim)
         self.fc_logstd = nn.Linear(hidden_dim, act_dim)
         low = torch.as_tensor(action_low, dtype=torch.float32)
@@ -169,120 +197,19 @@ class Actor(nn.Module):
     def deterministic(self, obs):
         return torch.tanh(self(obs)[0]) * self.action_scale + self.action_bias
 
+    @torch.no_grad()
+    def act(self, obs: np.ndarray, deterministic: bool = False) -> np.ndarray:
+        """The action for one env step: sampled, or the mean action (evaluation)."""
+        obs = torch.as_tensor(obs, dtype=torch.float32, device=self.action_scale.device).unsqueeze(0)
+        return (self.deterministic(obs) if deterministic else self.sample(obs)[0])[0].cpu().numpy()
 
-def make_act_fn(actor: Actor, obs_dim: int, device, cudagraphs: bool):
-    """Returns act(obs: np.ndarray, deterministic: bool) -> np.ndarray, for one env step."""
-    def act(obs, deterministic=False):
-        with torch.no_grad():
-            o = torch.as_tensor(obs, dtype=torch.float32, device=device).unsqueeze(0)
-            a = actor.deterministic(o) if deterministic else actor.sample(o)[0]
-        return a[0].cpu().numpy()
 
-    if not cudagraphs:
-        return act
-    static_obs = torch.zeros(1, obs_dim, device=device)
-    graphs, outputs = {}, {}
-    for det in (False, True):
-        act(np.zeros(obs_dim), det)  # warm-up
-        graphs[det] = torch.cuda.CUDAGraph()
-        with torch.no_grad(), torch.cuda.graph(graphs[det]):
-            outputs[det] = actor.deterministic(static_obs) if det else actor.sample(static_obs)[0]
-
-    def act_graphed(obs, deterministic=False):
-        static_obs.copy_(torch.as_tensor(obs, dtype=torch.float32).unsqueeze(0))
-        graphs[deterministic].replay()
-        return outputs[deterministic][0].cpu().numpy()
-
-    return act_graphed
+def actor_file(actor: Actor, env_id: str, **extra) -> dict:
+    """What actor.pt holds: the actor and what rebuilds it (`expert.py --record-from` reads any script's)."""
+    obs_dim, hidden_dim, act_dim = actor.net[0].in_features, actor.fc_mean.in_features, actor.fc_mean.out_features
+    return {"actor": actor.state_dict(), "env_id": env_id, "obs_dim": obs_dim, "act_dim": act_dim,
+            "hidden_dim": hidden_dim, **extra}
 # --- end shared: actor ---
-
-
-# --- shared: evaluation ---
-def evaluate(act, env_id: str, num_episodes: int, seed: int, capture_video_dir: Optional[str] = None):
-    """Deterministic policy on its own env; episode i starts from reset(seed=seed + i), so every
-    evaluation of a run sees the same start states. Returns the list of episode returns."""
-    env = make_env(env_id, seed, render_mode="rgb_array" if capture_video_dir else None)
-    if capture_video_dir:
-        env = gym.wrappers.RecordVideo(env, capture_video_dir, episode_trigger=lambda ep: ep == 0, disable_logger=True)
-    returns = []
-    for i in range(num_episodes):
-        obs, _ = env.reset(seed=seed + i)
-        done, ep_return = False, 0.0
-        while not done:
-            obs, reward, terminated, truncated, _ = env.step(act(obs, deterministic=True))
-            ep_return += float(reward)
-            done = terminated or truncated
-        returns.append(ep_return)
-    env.close()
-    return returns
-# --- end shared: evaluation ---
-
-
-# --- shared: results ---
-def cpu_name() -> str:
-    try:
-        with open("/proc/cpuinfo") as f:
-            return next(line.split(":", 1)[1].strip() for line in f if line.startswith("model name"))
-    except (OSError, StopIteration):
-        return platform.processor() or platform.machine()
-
-
-def machine_info(device) -> dict:
-    git = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
-                         cwd=os.path.dirname(os.path.abspath(__file__)))
-    info = {"host": platform.node(), "cpu": cpu_name(),
-            "cpu_count": os.cpu_count(), "torch": torch.__version__, "threads": torch.get_num_threads(),
-            "device": str(device), "python": platform.python_version(), "gymnasium": gym.__version__,
-            "git_commit": git.stdout.strip() if git.returncode == 0 else None}
-    if torch.device(device).type == "cuda":
-        info["gpu"] = torch.cuda.get_device_name(device)
-    return info
-
-
-def write_results(path: str, args, evals: list, expert_return: Optional[float], wall_time: float,
-                  sps: float, machine: dict, finished: bool) -> None:
-    """results.json: the run's config, its evaluation curve and where it ran (format in README)."""
-    final = evals[-1] if evals else None
-    results = {
-        "algo": args.exp_name, "env_id": args.env_id, "seed": args.seed, "finished": finished,
-        "evals": evals,  # [{"step", "mean", "std", "normalized"}]
-        "final_return": final["mean"] if final else None,
-        "final_normalized_return": final["normalized"] if final else None,
-        "expert_return": expert_return, "wall_time_s": wall_time, "sps": sps,
-        "machine": machine, "config": asdict(args),
-    }
-    with open(path + ".tmp", "w") as f:
-        json.dump(results, f, indent=1)
-    os.replace(path + ".tmp", path)
-def format_time(seconds: float) -> str:
-    seconds = int(seconds)
-    return f"{seconds // 3600}h{seconds % 3600 // 60:02d}m" if seconds >= 3600 else f"{seconds // 60}m{seconds % 60:02d}s"
-# --- end shared: results ---
-
-
-# --- shared: actor io ---
-def save_actor(path: str, actor: Actor, env_id: str, obs_dim: int, act_dim: int, hidden_dim: int, **extra) -> None:
-    """The actor alone, with what is needed to rebuild it: any script's actor.pt can record demos."""
-    torch.save({"actor": actor.state_dict(), "env_id": env_id, "obs_dim": obs_dim, "act_dim": act_dim,
-                "hidden_dim": hidden_dim, **extra}, path)
-
-
-def load_actor(path: str, env: gym.Env, device="cpu"):
-    """Rebuild a saved actor for `env`, with clear errors for a missing file or another env's actor."""
-    if not os.path.isfile(path):
-        raise SystemExit(f"error: no actor checkpoint at '{path}'")
-    try:
-        ckpt = torch.load(path, map_location="cpu", weights_only=True)
-    except Exception as e:
-        raise SystemExit(f"error: cannot read actor checkpoint '{path}' ({type(e).__name__}: {e})") from None
-    obs_dim, act_dim = env.observation_space.shape[0], env.action_space.shape[0]
-    if (ckpt.get("obs_dim"), ckpt.get("act_dim")) != (obs_dim, act_dim):
-        raise SystemExit(f"error: actor '{path}' was saved for {ckpt.get('env_id')} (obs {ckpt.get('obs_dim')}, "
-                         f"act {ckpt.get('act_dim')}), not for {env.spec.id} (obs {obs_dim}, act {act_dim})")
-    actor = Actor(obs_dim, act_dim, env.action_space.low, env.action_space.high, ckpt["hidden_dim"])
-    actor.load_state_dict(ckpt["actor"])
-    return actor.to(device).eval(), ckpt
-# --- end shared: actor io ---
 
 
 # --- shared: demonstrations ---
@@ -328,100 +255,241 @@ def load_demonstrations(path: str, env: gym.Env, num_trajs: Optional[int] = None
 # --- end shared: demonstrations ---
 
 
-# ALGO LOGIC: the BC loss and the held-out split
-def bc_loss(actor: Actor, obs, actions, kind: str):
-    """Mean -log pi(a_E|s) (actions clamped inside the box) or mean squared error of tanh(mean)."""
-    if kind == "nll":
-        return -actor.log_prob(obs, actions).mean()
-    if kind == "mse":
-        return (actor.deterministic(obs) - actions).pow(2).sum(-1).mean()
-    raise ValueError(f"unknown loss '{kind}'; choose nll or mse")
+# --- shared: evaluation ---
+def evaluate(act, env_id: str, num_episodes: int, seed: int, capture_video_dir: Optional[str] = None):
+    """Deterministic policy on its own env; episode i starts from reset(seed=seed + i), so every
+    evaluation of a run sees the same start states. Returns the list of episode returns."""
+    env = make_env(env_id, seed, render_mode="rgb_array" if capture_video_dir else None)
+    if capture_video_dir:
+        env = gym.wrappers.RecordVideo(env, capture_video_dir, episode_trigger=lambda ep: ep == 0, disable_logger=True)
+    returns = []
+    for i in range(num_episodes):
+        obs, _ = env.reset(seed=seed + i)
+        done, ep_return = False, 0.0
+        while not done:
+            obs, reward, terminated, truncated, _ = env.step(act(obs, deterministic=True))
+            ep_return += float(reward)
+            done = terminated or truncated
+        returns.append(ep_return)
+    env.close()
+    return returns
+# --- end shared: evaluation ---
 
 
-def holdout_split(demos: dict, fraction: float):
-    """Row indices (train, held out): the last whole episodes, or the last transitions of a single one."""
-    starts, lengths = demos["episode_starts"], demos["episode_lengths"]
-    n = int(lengths.sum())
-    if len(lengths) >= 2:
-        k = max(1, int(round(fraction * len(lengths))))
-        cut = int(starts[len(lengths) - k])
-    else:
-        cut = n - max(1, int(round(fraction * n)))
-    return np.arange(cut), np.arange(cut, n)
+# --- shared: run ---
+class Run:
+    """Everything around the method: the run directory (config.json, TensorBoard, results.json), evaluation
+    every --eval-freq steps, a progress line every 30 s, a checkpoint every --checkpoint-freq steps and on
+    Ctrl-C / SIGTERM, and --resume. `stateful` names the objects with state_dict() / load_state_dict() (the
+    learners with their optimisers, the replay buffer; a plain dict is saved as it is): a checkpoint is
+    their states, the RNG states and the run's progress."""
+
+    def __init__(self, args, checkpoint: Optional[dict], stateful: dict, expert_return: Optional[float], device):
+        self.args, self.stateful, self.expert_return = args, stateful, expert_return
+        default_name = f"{args.env_id}__{args.exp_name}__{args.seed}__{int(time.time())}"
+        self.name = checkpoint["run_name"] if checkpoint else (args.run_name or default_name)
+        self.dir = os.path.join("runs", self.name)
+        os.makedirs(self.dir, exist_ok=True)
+        with open(os.path.join(self.dir, "config.json"), "w") as f:
+            json.dump(asdict(args), f, indent=1)
+        if args.track:
+            import wandb
+
+            wandb.init(project=args.wandb_project_name, entity=args.wandb_entity, sync_tensorboard=True,
+                       config=vars(args), name=self.name, id=self.name, resume="allow", save_code=True)
+        from torch.utils.tensorboard import SummaryWriter
+
+        self.writer = SummaryWriter(self.dir)
+        table = "\n".join(f"|{k}|{v}|" for k, v in vars(args).items())
+        self.writer.add_text("hyperparameters", f"|param|value|\n|-|-|\n{table}")
+        self.machine = {"host": platform.node(), "torch": torch.__version__, "threads": torch.get_num_threads(),
+                        "device": str(device)}
+        self.evals, self.start_step, self.wall_offset = [], 0, 0.0
+        if checkpoint:
+            for name, obj in stateful.items():
+                if isinstance(obj, dict):
+                    obj.update({k: v.to(device) if torch.is_tensor(v) else v for k, v in checkpoint[name].items()})
+                else:
+                    obj.load_state_dict(checkpoint[name])
+            self.evals, self.start_step, self.wall_offset = checkpoint["evals"], checkpoint["step"], checkpoint["wall_time"]
+            set_rng_state(checkpoint["rng"])
+            print(f"resumed {self.dir} at step {self.start_step}")
+        self.stop_signal, self.sps, self.learn_steps, self.learn_time, self.last_print = 0, 0.0, 0, 0.0, 0.0
+        signal.signal(signal.SIGINT, self.on_signal)
+        signal.signal(signal.SIGTERM, self.on_signal)
+        self.start_time, self.tick = time.time(), time.perf_counter()
+
+    def on_signal(self, signum, frame):
+        if self.stop_signal:  # a second Ctrl-C stops at once
+            raise KeyboardInterrupt
+        self.stop_signal = signum
+        print(f"\nsignal {signum}: saving a checkpoint at the end of this step, then exiting", flush=True)
+
+    def log(self, metrics: dict, step: int) -> None:
+        for name, value in metrics.items():
+            self.writer.add_scalar(name, float(value), step)
+
+    def end_step(self, step: int, act, status: str = "") -> None:
+        """After env step `step` (counted from 1): speed, evaluation, progress line, checkpoint."""
+        args = self.args
+        if step > getattr(args, "learning_starts", 0):  # SPS counts the steps that learn, evaluation excluded
+            self.learn_steps, self.learn_time = self.learn_steps + 1, self.learn_time + time.perf_counter() - self.tick
+            self.sps = self.learn_steps / self.learn_time
+            if step % 1000 == 1:
+                self.log({"charts/SPS": self.sps}, step - 1)
+        if step % args.eval_freq == 0 or step == args.total_timesteps:
+            self.evaluate(step, act)
+        if time.time() - self.last_print > 30 or step == args.total_timesteps:
+            self.last_print = time.time()
+            left = format_time((args.total_timesteps - step) / self.sps) if self.sps > 0 else "?"
+            print(f"step {step}/{args.total_timesteps} | {self.sps:.0f} SPS | eval return {self.last_eval()}{status} | "
+                  f"left {left}", flush=True)
+        checkpoint_freq = getattr(args, "checkpoint_freq", 0)
+        if self.stop_signal or (checkpoint_freq and step % checkpoint_freq == 0 and step < args.total_timesteps):
+            self.save_checkpoint(step)
+            if self.stop_signal:
+                print(f"checkpoint saved at step {step}; continue with: python {sys.argv[0]} --resume {self.dir}")
+                self.writer.close()
+                sys.exit(128 + self.stop_signal)
+        self.tick = time.perf_counter()
+
+    def evaluate(self, step: int, act) -> None:
+        """--eval-episodes of the deterministic policy, logged and written to results.json."""
+        returns = evaluate(act, self.args.env_id, self.args.eval_episodes, seed=self.args.seed + 100_000)
+        mean, std = float(np.mean(returns)), float(np.std(returns))
+        normalized = mean / self.expert_return if self.expert_return else None
+        self.evals.append({"step": step, "mean": mean, "std": std, "normalized": normalized})
+        self.log({"eval/return": mean} | ({"eval/normalized_return": normalized} if normalized is not None else {}), step)
+        self.write_results(finished=False)
+
+    def last_eval(self) -> str:
+        if not self.evals:
+            return "-"
+        e = self.evals[-1]
+        versus = f" = {e['normalized']:.2f} x expert {self.expert_return:.1f}" if e["normalized"] is not None else ""
+        return f"{e['mean']:.1f} +- {e['std']:.1f}{versus} (step {e['step']})"
+
+    def save_checkpoint(self, step: int) -> None:
+        state = {name: dict(obj) if isinstance(obj, dict) else obj.state_dict() for name, obj in self.stateful.items()}
+        state.update(step=step, evals=self.evals, wall_time=self.wall_time(), rng=rng_state(), config=asdict(self.args),
+                     run_name=self.name)
+        path = os.path.join(self.dir, "checkpoint.pt")
+        torch.save(state, path + ".tmp")
+        os.replace(path + ".tmp", path)  # atomic: an interrupted save never leaves a broken checkpoint
+
+    def wall_time(self) -> float:
+        return self.wall_offset + time.time() - self.start_time
+
+    def write_results(self, finished: bool) -> None:
+        """results.json: the run's config, its evaluation curve and where it ran (format in README)."""
+        final = self.evals[-1] if self.evals else {}
+        results = {
+            "algo": self.args.exp_name, "env_id": self.args.env_id, "seed": self.args.seed, "finished": finished,
+            "evals": self.evals, "final_return": final.get("mean"), "final_normalized_return": final.get("normalized"),
+            "expert_return": self.expert_return, "wall_time_s": self.wall_time(), "sps": self.sps,
+            "machine": self.machine, "config": asdict(self.args),
+        }
+        path = os.path.join(self.dir, "results.json")
+        with open(path + ".tmp", "w") as f:
+            json.dump(results, f, indent=1)
+        os.replace(path + ".tmp", path)
+
+    def finish(self, act, models: dict, status: str = "") -> None:
+        """The last checkpoint and results.json, the models (unless --no-save-model), a video (--capture-video)."""
+        args = self.args
+        if hasattr(args, "checkpoint_freq"):  # scripts without checkpoints (bc.py) have no such flag
+            self.save_checkpoint(args.total_timesteps)
+        self.write_results(finished=True)
+        if args.save_model:
+            for filename, content in models.items():
+                torch.save(content, os.path.join(self.dir, filename))
+            print(f"saved {', '.join(os.path.join(self.dir, filename) for filename in models)}")
+        if args.capture_video:
+            evaluate(act, args.env_id, 1, seed=args.seed + 100_000, capture_video_dir=os.path.join(self.dir, "videos"))
+        self.writer.close()
+        if self.evals:
+            print(f"done: {args.total_timesteps} steps in {format_time(self.wall_time())}, final eval return "
+                  f"{self.last_eval()}{status}")
+
+
+def format_time(seconds: float) -> str:
+    seconds = int(seconds)
+    return f"{seconds // 3600}h{seconds % 3600 // 60:02d}m" if seconds >= 3600 else f"{seconds // 60}m{seconds % 60:02d}s"
+
+
+def resume(args):
+    """--resume: the saved checkpoint, and the saved run's config with the fields a user may change on
+    resume (total_timesteps, cuda, threads) taken from the command line where they differ from their defaults."""
+    path = os.path.join(args.resume, "checkpoint.pt") if os.path.isdir(args.resume) else args.resume
+    if not os.path.isfile(path):
+        raise SystemExit(f"error: no checkpoint at '{path}'; pass --resume runs/<run> of a run that saved one")
+    try:
+        checkpoint = torch.load(path, map_location="cpu", weights_only=False)
+    except Exception as e:
+        raise SystemExit(f"error: cannot read checkpoint '{path}' ({type(e).__name__}: {e})") from None
+    saved = type(args)(**{f.name: checkpoint["config"][f.name] for f in fields(args) if f.name in checkpoint["config"]})
+    for name in ("total_timesteps", "cuda", "threads", "compile", "cudagraphs"):
+        if hasattr(args, name) and getattr(args, name) != getattr(type(args)(), name):
+            setattr(saved, name, getattr(args, name))
+    saved.resume = args.resume
+    return saved, checkpoint
+
+
+def rng_state() -> dict:
+    return {"python": random.getstate(), "numpy": np.random.get_state(), "torch": torch.get_rng_state(),
+            "cuda": torch.cuda.get_rng_state_all() if torch.cuda.is_available() else None}
+
+
+def set_rng_state(state: dict) -> None:
+    random.setstate(state["python"])
+    np.random.set_state(state["numpy"])
+    torch.set_rng_state(state["torch"])
+    if state["cuda"] is not None and torch.cuda.is_available():
+        torch.cuda.set_rng_state_all(state["cuda"])
+# --- end shared: run ---
 
 
 if __name__ == "__main__":
     args = tyro.cli(Args)
+    args, checkpoint = resume(args) if args.resume else (args, None)
     torch.set_num_threads(args.threads)
     device = torch.device("cuda" if torch.cuda.is_available() and args.cuda else "cpu")
     seed_everything(args.seed, args.torch_deterministic)
     env = make_env(args.env_id, args.seed)
     obs_dim, act_dim = env.observation_space.shape[0], env.action_space.shape[0]
-    demos = load_demonstrations(args.expert_path or os.path.join("experts", f"{args.env_id}.npz"), env, args.num_expert_trajs)
-    expert_return = float(demos["episode_returns"].mean())
+    demos = load_demonstrations(args.expert_path or f"experts/{args.env_id}.npz", env, args.num_expert_trajs)
     train_idx, holdout_idx = holdout_split(demos, args.holdout_fraction)
     obs = torch.as_tensor(demos["observations"], device=device)
     actions = torch.as_tensor(demos["actions"], device=device)
     train_idx, holdout_idx = torch.as_tensor(train_idx, device=device), torch.as_tensor(holdout_idx, device=device)
     print(f"BC ({args.loss}) on {len(train_idx)} expert pairs, {len(holdout_idx)} held out")
 
-    run_name = args.run_name or f"{args.env_id}__{args.exp_name}__{args.seed}__{int(time.time())}"
-    run_dir = os.path.join("runs", run_name)
-    os.makedirs(run_dir, exist_ok=True)
-    with open(os.path.join(run_dir, "config.json"), "w") as f:
-        json.dump(asdict(args), f, indent=1)
-    if args.track:
-        import wandb
-
-        wandb.init(project=args.wandb_project_name, entity=args.wandb_entity, sync_tensorboard=True,
-                   config=vars(args), name=run_name, save_code=True)
-    from torch.utils.tensorboard import SummaryWriter
-
-    writer = SummaryWriter(run_dir)
-    writer.add_text("hyperparameters", "|param|value|\n|-|-|\n" + "\n".join(f"|{k}|{v}|" for k, v in vars(args).items()))
-
-    # ALGO LOGIC: the actor and its optimiser
-    actor = Actor(obs_dim, act_dim, env.action_space.low, env.action_space.high, args.hidden_dim).to(device)
-    optimizer = torch.optim.Adam(actor.parameters(), lr=args.learning_rate)
-    act = make_act_fn(actor, obs_dim, device, cudagraphs=False)
-    machine = machine_info(device)
+    # ALGO LOGIC: the agent (the actor) and its optimiser
+    agent = Actor(obs_dim, act_dim, env.action_space.low, env.action_space.high, args.hidden_dim).to(device)
+    optimizer = torch.optim.Adam(agent.parameters(), lr=args.learning_rate)
+    best = {"holdout_loss": float("inf")}
+    stateful = {"agent": agent, "optimizer": optimizer, "best": best}
+    run = Run(args, checkpoint, stateful, float(demos["episode_returns"].mean()), device)
 
     # TRY NOT TO MODIFY: start training
-    evals, best_holdout, start_time, sps = [], float("inf"), time.time(), 0.0
-    for step in range(1, args.total_timesteps + 1):
+    for step in range(run.start_step + 1, args.total_timesteps + 1):
         idx = train_idx[torch.randint(0, len(train_idx), (args.batch_size,), device=device)]
-        loss = bc_loss(actor, obs[idx], actions[idx], args.loss)
+        loss = bc_loss(agent, obs[idx], actions[idx], args.loss)
         optimizer.zero_grad(set_to_none=False)
         loss.backward()
         optimizer.step()
 
-        if step % args.eval_freq == 0 or step == args.total_timesteps:
-            sps = step / (time.time() - start_time)
+        run.end_step(step, agent.act)
+        if step % args.eval_freq == 0 or step == args.total_timesteps:  # just evaluated: add the held-out loss
             with torch.no_grad():
-                holdout = bc_loss(actor, obs[holdout_idx], actions[holdout_idx], args.loss).item()
-            returns = evaluate(act, args.env_id, args.eval_episodes, seed=args.seed + 100_000)
-            mean = float(np.mean(returns))
-            evals.append({"step": step, "mean": mean, "std": float(np.std(returns)), "normalized": mean / expert_return,
-                          "holdout_loss": holdout})
-            for name, value in (("losses/train", loss.item()), ("losses/holdout", holdout), ("eval/return", mean),
-                                ("eval/normalized_return", mean / expert_return), ("charts/SPS", sps)):
-                writer.add_scalar(name, value, step)
-            write_results(os.path.join(run_dir, "results.json"), args, evals, expert_return, time.time() - start_time,
-                          sps, machine, finished=step == args.total_timesteps)
-            if args.save_model and holdout < best_holdout:
-                best_holdout = holdout
-                save_actor(os.path.join(run_dir, "actor_best.pt"), actor, args.env_id, obs_dim, act_dim, args.hidden_dim,
-                           training_steps=step, holdout_loss=holdout)
-            print(f"step {step}/{args.total_timesteps} | loss {loss.item():.3f} | held-out {holdout:.3f} | eval return "
-                  f"{mean:.1f} = {mean / expert_return:.2f} x expert {expert_return:.1f}", flush=True)
+                holdout = bc_loss(agent, obs[holdout_idx], actions[holdout_idx], args.loss).item()
+            run.evals[-1]["holdout_loss"] = holdout
+            run.log({"losses/train": loss, "losses/holdout": holdout}, step)
+            if args.save_model and holdout < best["holdout_loss"]:  # early stopping by selection
+                best["holdout_loss"] = holdout
+                torch.save(actor_file(agent, args.env_id, training_steps=step, holdout_loss=holdout),
+                           os.path.join(run.dir, "actor_best.pt"))
 
-    if args.save_model:
-        save_actor(os.path.join(run_dir, "actor.pt"), actor, args.env_id, obs_dim, act_dim, args.hidden_dim,
-                   training_steps=args.total_timesteps)
-        print(f"saved {run_dir}/actor.pt (final) and actor_best.pt (lowest held-out loss {best_holdout:.3f})")
-    if args.capture_video:
-        evaluate(act, args.env_id, 1, seed=args.seed + 100_000, capture_video_dir=os.path.join(run_dir, "videos"))
+    run.finish(agent.act, {"actor.pt": actor_file(agent, args.env_id, training_steps=args.total_timesteps)},
+               status=f"; actor_best.pt: held-out loss {best['holdout_loss']:.3f}" if args.save_model else "")
     env.close()
-    writer.close()
-    print(f"done: {args.total_timesteps} gradient steps in {format_time(time.time() - start_time)}, final eval return "
-          f"{evals[-1]['mean']:.1f} +- {evals[-1]['std']:.1f} ({evals[-1]['normalized']:.2f} x expert {expert_return:.1f})")

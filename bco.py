@@ -20,18 +20,22 @@ Implementation choices and deviations
 4. The policy is the project's SAC actor, cloned by the squashed-Gaussian NLL of the inferred actions
    (as bc.py), and kept across iterations (each iteration continues its training).
 5. The budget is env steps: `--pre-demo-steps` + `--iterations` x alpha x pre-demo steps, all counted
-   in results.json ("step" is env steps used so far) and printed.
+   in results.json ("step" is env steps used so far, "iteration" the iteration) and printed; without
+   `--total-timesteps`, that budget is recorded as total_timesteps in the config.
+6. No checkpoints (a run of the default length takes minutes): Ctrl-C stops the run at once.
 
-Logged metrics: losses/inverse, losses/bc, eval/return, eval/normalized_return, charts/env_steps.
+Logged metrics: losses/inverse, losses/bc and charts/env_steps (against the iteration); eval/return and
+eval/normalized_return (against env steps, as in every script).
 """
 
 import json
 import os
 import platform
 import random
-import subprocess
+import signal
+import sys
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, fields
 from typing import Literal, Optional
 
 import gymnasium as gym
@@ -104,239 +108,6 @@ class Args:
     """use the first this many demonstration episodes"""
 
 
-# --- shared: env ---
-def make_env(env_id: str, seed: int, render_mode: Optional[str] = None) -> gym.Env:
-    """One gymnasium env (no vector env: episodes are reset explicitly), seeded, with a clear error."""
-    try:
-        env = gym.make(env_id, render_mode=render_mode)
-    except gym.error.Error as e:
-        raise SystemExit(f"error: cannot make environment '{env_id}' ({e}); check --env-id") from None
-    if not isinstance(env.action_space, gym.spaces.Box) or not isinstance(env.observation_space, gym.spaces.Box):
-        raise SystemExit(f"error: '{env_id}' needs Box observation and action spaces")
-    env = gym.wrappers.RecordEpisodeStatistics(env)
-    env.action_space.seed(seed)
-    env.observation_space.seed(seed)
-    return env
-
-
-def seed_everything(seed: int, torch_deterministic: bool = True) -> None:
-    random.seed(seed)
-    np.random.seed(seed)
-    torch.manual_seed(seed)
-    torch.backends.cudnn.deterministic = torch_deterministic
-# --- end shared: env ---
-
-
-# --- shared: actor ---
-LOG_STD_MAX = 2
-LOG_STD_MIN = -5
-
-
-class Actor(nn.Module):
-    """tanh-squashed Gaussian policy; actions are scaled from [-1, 1] into the env's action box."""
-
-    def __init__(self, obs_dim: int, act_dim: int, action_low, action_high, hidden_dim: int = 256):
-        super().__init__()
-        self.net = nn.Sequential(
-            nn.Linear(obs_dim, hidden_dim), nn.ReLU(), nn.Linear(hidden_dim, hidden_dim), nn.ReLU()
-        )
-        self.fc_mean = nn.Linear(hidden_dim, act_dim)
-        self.fc_logstd = nn.Linear(hidden_dim, act_dim)
-        low = torch.as_tensor(action_low, dtype=torch.float32)
-        high = torch.as_tensor(action_high, dtype=torch.float32)
-        self.register_buffer("action_scale", (high - low) / 2.0)
-        self.register_buffer("action_bias", (high + low) / 2.0)
-
-    def forward(self, obs):
-        h = self.net(obs)
-        log_std = torch.tanh(self.fc_logstd(h))
-        log_std = LOG_STD_MIN + 0.5 * (LOG_STD_MAX - LOG_STD_MIN) * (log_std + 1)
-        return self.fc_mean(h), log_std
-
-    def _log_prob(self, u, noise, log_std):
-        """log pi(a|s) for a = tanh(u) * scale + bias, u = mean + std * noise.
-        log(1 - tanh(u)^2) is written as 2 (log 2 - u - softplus(-2u)): exact, and finite at the bounds."""
-        gauss = -0.5 * noise.pow(2) - log_std - 0.5 * np.log(2 * np.pi)
-        squash = 2.0 * (np.log(2.0) - u - F.softplus(-2.0 * u)) + torch.log(self.action_scale)
-        return (gauss - squash).sum(-1)
-
-    def sample(self, obs):
-        """A reparameterised action in env units and its log-probability."""
-        mean, log_std = self(obs)
-        noise = torch.randn_like(mean)
-        u = mean + log_std.exp() * noise
-        action = torch.tanh(u) * self.action_scale + self.action_bias
-        return action, self._log_prob(u, noise, log_std)
-
-    def log_prob(self, obs, action, eps: float = 1e-6):
-        """log pi(action|obs) of given env-unit actions (e.g. expert actions), clamped inside the box."""
-        mean, log_std = self(obs)
-        y = ((action - self.action_bias) / self.action_scale).clamp(-1 + eps, 1 - eps)
-        u = torch.atanh(y)
-        return self._log_prob(u, (u - mean) / log_std.exp(), log_std)
-
-    def deterministic(self, obs):
-        return torch.tanh(self(obs)[0]) * self.action_scale + self.action_bias
-
-
-def make_act_fn(actor: Actor, obs_dim: int, device, cudagraphs: bool):
-    """Returns act(obs: np.ndarray, deterministic: bool) -> np.ndarray, for one env step."""
-    def act(obs, deterministic=False):
-        with torch.no_grad():
-            o = torch.as_tensor(obs, dtype=torch.float32, device=device).unsqueeze(0)
-            a = actor.deterministic(o) if deterministic else actor.sample(o)[0]
-        return a[0].cpu().numpy()
-
-    if not cudagraphs:
-        return act
-    static_obs = torch.zeros(1, obs_dim, device=device)
-    graphs, outputs = {}, {}
-    for det in (False, True):
-        act(np.zeros(obs_dim), det)  # warm-up
-        graphs[det] = torch.cuda.CUDAGraph()
-        with torch.no_grad(), torch.cuda.graph(graphs[det]):
-            outputs[det] = actor.deterministic(static_obs) if det else actor.sample(static_obs)[0]
-
-    def act_graphed(obs, deterministic=False):
-        static_obs.copy_(torch.as_tensor(obs, dtype=torch.float32).unsqueeze(0))
-        graphs[deterministic].replay()
-        return outputs[deterministic][0].cpu().numpy()
-
-    return act_graphed
-# --- end shared: actor ---
-
-
-# --- shared: evaluation ---
-def evaluate(act, env_id: str, num_episodes: int, seed: int, capture_video_dir: Optional[str] = None):
-    """Deterministic policy on its own env; episode i starts from reset(seed=seed + i), so every
-    evaluation of a run sees the same start states. Returns the list of episode returns."""
-    env = make_env(env_id, seed, render_mode="rgb_array" if capture_video_dir else None)
-    if capture_video_dir:
-        env = gym.wrappers.RecordVideo(env, capture_video_dir, episode_trigger=lambda ep: ep == 0, disable_logger=True)
-    returns = []
-    for i in range(num_episodes):
-        obs, _ = env.reset(seed=seed + i)
-        done, ep_return = False, 0.0
-        while not done:
-            obs, reward, terminated, truncated, _ = env.step(act(obs, deterministic=True))
-            ep_return += float(reward)
-            done = terminated or truncated
-        returns.append(ep_return)
-    env.close()
-    return returns
-# --- end shared: evaluation ---
-
-
-# --- shared: results ---
-def cpu_name() -> str:
-    try:
-        with open("/proc/cpuinfo") as f:
-            return next(line.split(":", 1)[1].strip() for line in f if line.startswith("model name"))
-    except (OSError, StopIteration):
-        return platform.processor() or platform.machine()
-
-
-def machine_info(device) -> dict:
-    git = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
-                         cwd=os.path.dirname(os.path.abspath(__file__)))
-    info = {"host": platform.node(), "cpu": cpu_name(),
-            "cpu_count": os.cpu_count(), "torch": torch.__version__, "threads": torch.get_num_threads(),
-            "device": str(device), "python": platform.python_version(), "gymnasium": gym.__version__,
-            "git_commit": git.stdout.strip() if git.returncode == 0 else None}
-    if torch.device(device).type == "cuda":
-        info["gpu"] = torch.cuda.get_device_name(device)
-    return info
-
-
-def write_results(path: str, args, evals: list, expert_return: Optional[float], wall_time: float,
-                  sps: float, machine: dict, finished: bool) -> None:
-    """results.json: the run's config, its evaluation curve and where it ran (format in README)."""
-    final = evals[-1] if evals else None
-    results = {
-        "algo": args.exp_name, "env_id": args.env_id, "seed": args.seed, "finished": finished,
-        "evals": evals,  # [{"step", "mean", "std", "normalized"}]
-        "final_return": final["mean"] if final else None,
-        "final_normalized_return": final["normalized"] if final else None,
-        "expert_return": expert_return, "wall_time_s": wall_time, "sps": sps,
-        "machine": machine, "config": asdict(args),
-    }
-    with open(path + ".tmp", "w") as f:
-        json.dump(results, f, indent=1)
-    os.replace(path + ".tmp", path)
-def format_time(seconds: float) -> str:
-    seconds = int(seconds)
-    return f"{seconds // 3600}h{seconds % 3600 // 60:02d}m" if seconds >= 3600 else f"{seconds // 60}m{seconds % 60:02d}s"
-# --- end shared: results ---
-
-
-# --- shared: actor io ---
-def save_actor(path: str, actor: Actor, env_id: str, obs_dim: int, act_dim: int, hidden_dim: int, **extra) -> None:
-    """The actor alone, with what is needed to rebuild it: any script's actor.pt can record demos."""
-    torch.save({"actor": actor.state_dict(), "env_id": env_id, "obs_dim": obs_dim, "act_dim": act_dim,
-                "hidden_dim": hidden_dim, **extra}, path)
-
-
-def load_actor(path: str, env: gym.Env, device="cpu"):
-    """Rebuild a saved actor for `env`, with clear errors for a missing file or another env's actor."""
-    if not os.path.isfile(path):
-        raise SystemExit(f"error: no actor checkpoint at '{path}'")
-    try:
-        ckpt = torch.load(path, map_location="cpu", weights_only=True)
-    except Exception as e:
-        raise SystemExit(f"error: cannot read actor checkpoint '{path}' ({type(e).__name__}: {e})") from None
-    obs_dim, act_dim = env.observation_space.shape[0], env.action_space.shape[0]
-    if (ckpt.get("obs_dim"), ckpt.get("act_dim")) != (obs_dim, act_dim):
-        raise SystemExit(f"error: actor '{path}' was saved for {ckpt.get('env_id')} (obs {ckpt.get('obs_dim')}, "
-                         f"act {ckpt.get('act_dim')}), not for {env.spec.id} (obs {obs_dim}, act {act_dim})")
-    actor = Actor(obs_dim, act_dim, env.action_space.low, env.action_space.high, ckpt["hidden_dim"])
-    actor.load_state_dict(ckpt["actor"])
-    return actor.to(device).eval(), ckpt
-# --- end shared: actor io ---
-
-
-# --- shared: demonstrations ---
-DEMO_KEYS = ("observations", "actions", "next_observations", "rewards", "terminations", "truncations",
-             "episode_starts", "episode_lengths", "episode_returns", "metadata")
-
-
-def load_demonstrations(path: str, env: gym.Env, num_trajs: Optional[int] = None) -> dict:
-    """Load experts/<env-id>.npz (format in README), check it belongs to `env`, keep the first
-    `num_trajs` episodes. Every problem is one clear SystemExit line."""
-    env_id = env.spec.id
-    if not os.path.isfile(path):
-        raise SystemExit(f"error: no demonstrations at '{path}'; record them with "
-                         f"`python expert.py --env-id {env_id}` or pass --expert-path")
-    try:
-        with np.load(path, allow_pickle=False) as f:
-            data = {k: f[k] for k in f.files}
-        meta = json.loads(str(data["metadata"]))
-    except Exception as e:
-        raise SystemExit(f"error: demonstrations '{path}' are unreadable or corrupt ({type(e).__name__}: {e}); "
-                         f"record them again with `python expert.py --env-id {env_id}`") from None
-    missing = [k for k in DEMO_KEYS if k not in data]
-    if missing:
-        raise SystemExit(f"error: demonstrations '{path}' lack {missing}; record them again with expert.py")
-    if meta.get("env_id") != env_id:
-        raise SystemExit(f"error: demonstrations '{path}' were recorded on {meta.get('env_id')}, not {env_id}; "
-                         f"pass the file for {env_id} with --expert-path")
-    obs_dim, act_dim = env.observation_space.shape[0], env.action_space.shape[0]
-    if data["observations"].shape[1:] != (obs_dim,) or data["actions"].shape[1:] != (act_dim,):
-        raise SystemExit(f"error: demonstrations '{path}' have obs/act dims {data['observations'].shape[1:]}/"
-                         f"{data['actions'].shape[1:]}, {env_id} has ({obs_dim},)/({act_dim},)")
-    num_episodes = len(data["episode_lengths"])
-    if num_trajs is not None:
-        if not 1 <= num_trajs <= num_episodes:
-            raise SystemExit(f"error: --num-expert-trajs {num_trajs}, but '{path}' holds {num_episodes} episodes")
-        end = int(data["episode_starts"][num_trajs - 1] + data["episode_lengths"][num_trajs - 1])
-        for k in ("observations", "actions", "next_observations", "rewards", "terminations", "truncations"):
-            data[k] = data[k][:end]
-        for k in ("episode_starts", "episode_lengths", "episode_returns"):
-            data[k] = data[k][:num_trajs]
-    data["metadata"] = meta
-    return data
-# --- end shared: demonstrations ---
-
-
 # ALGO LOGIC: the inverse dynamics model, transitions, labelling and cloning
 class InverseDynamics(nn.Module):
     """a = M(s, s'), predicted in the actor's [-1, 1] range and scaled into the env's action box."""
@@ -385,6 +156,330 @@ def train(model_loss, optimizer, data: tuple, steps: int, batch_size: int) -> fl
     return loss.item()
 
 
+# --- shared: env ---
+def make_env(env_id: str, seed: int, render_mode: Optional[str] = None) -> gym.Env:
+    """One gymnasium env (no vector env: episodes are reset explicitly), seeded, with a clear error."""
+    try:
+        env = gym.make(env_id, render_mode=render_mode)
+    except gym.error.Error as e:
+        raise SystemExit(f"error: cannot make environment '{env_id}' ({e}); check --env-id") from None
+    if not isinstance(env.action_space, gym.spaces.Box) or not isinstance(env.observation_space, gym.spaces.Box):
+        raise SystemExit(f"error: '{env_id}' needs Box observation and action spaces")
+    env = gym.wrappers.RecordEpisodeStatistics(env)
+    env.action_space.seed(seed)
+    env.observation_space.seed(seed)
+    return env
+
+
+def seed_everything(seed: int, torch_deterministic: bool = True) -> None:
+    random.seed(seed)
+    np.random.seed(seed)
+    torch.manual_seed(seed)
+    torch.backends.cudnn.deterministic = torch_deterministic
+# --- end shared: env ---
+
+
+# --- shared: actor ---
+LOG_STD_MAX = 2
+LOG_STD_MIN = -5
+
+
+class Actor(nn.Module):
+    """tanh-squashed Gaussian policy; actions are scaled from [-1, 1] into the env's action box."""
+
+    def __init__(self, obs_dim: int, act_dim: int, action_low, action_high, hidden_dim: int = 256):
+        super().__init__()
+        self.net = nn.Sequential(nn.Linear(obs_dim, hidden_dim), nn.ReLU(), nn.Linear(hidden_dim, hidden_dim), nn.ReLU())
+        self.fc_mean = nn.Linear(hidden_dim, act_dim)
+        self.fc_logstd = nn.Linear(hidden_dim, act_dim)
+        low = torch.as_tensor(action_low, dtype=torch.float32)
+        high = torch.as_tensor(action_high, dtype=torch.float32)
+        self.register_buffer("action_scale", (high - low) / 2.0)
+        self.register_buffer("action_bias", (high + low) / 2.0)
+
+    def forward(self, obs):
+        h = self.net(obs)
+        log_std = torch.tanh(self.fc_logstd(h))
+        log_std = LOG_STD_MIN + 0.5 * (LOG_STD_MAX - LOG_STD_MIN) * (log_std + 1)
+        return self.fc_mean(h), log_std
+
+    def _log_prob(self, u, noise, log_std):
+        """log pi(a|s) for a = tanh(u) * scale + bias, u = mean + std * noise.
+        log(1 - tanh(u)^2) is written as 2 (log 2 - u - softplus(-2u)): exact, and finite at the bounds."""
+        gauss = -0.5 * noise.pow(2) - log_std - 0.5 * np.log(2 * np.pi)
+        squash = 2.0 * (np.log(2.0) - u - F.softplus(-2.0 * u)) + torch.log(self.action_scale)
+        return (gauss - squash).sum(-1)
+
+    def sample(self, obs):
+        """A reparameterised action in env units and its log-probability."""
+        mean, log_std = self(obs)
+        noise = torch.randn_like(mean)
+        u = mean + log_std.exp() * noise
+        action = torch.tanh(u) * self.action_scale + self.action_bias
+        return action, self._log_prob(u, noise, log_std)
+
+    def log_prob(self, obs, action, eps: float = 1e-6):
+        """log pi(action|obs) of given env-unit actions (e.g. expert actions), clamped inside the box."""
+        mean, log_std = self(obs)
+        y = ((action - self.action_bias) / self.action_scale).clamp(-1 + eps, 1 - eps)
+        u = torch.atanh(y)
+        return self._log_prob(u, (u - mean) / log_std.exp(), log_std)
+
+    def deterministic(self, obs):
+        return torch.tanh(self(obs)[0]) * self.action_scale + self.action_bias
+
+    @torch.no_grad()
+    def act(self, obs: np.ndarray, deterministic: bool = False) -> np.ndarray:
+        """The action for one env step: sampled, or the mean action (evaluation)."""
+        obs = torch.as_tensor(obs, dtype=torch.float32, device=self.action_scale.device).unsqueeze(0)
+        return (self.deterministic(obs) if deterministic else self.sample(obs)[0])[0].cpu().numpy()
+
+
+def actor_file(actor: Actor, env_id: str, **extra) -> dict:
+    """What actor.pt holds: the actor and what rebuilds it (`expert.py --record-from` reads any script's)."""
+    obs_dim, hidden_dim, act_dim = actor.net[0].in_features, actor.fc_mean.in_features, actor.fc_mean.out_features
+    return {"actor": actor.state_dict(), "env_id": env_id, "obs_dim": obs_dim, "act_dim": act_dim,
+            "hidden_dim": hidden_dim, **extra}
+# --- end shared: actor ---
+
+
+# --- shared: demonstrations ---
+DEMO_KEYS = ("observations", "actions", "next_observations", "rewards", "terminations", "truncations",
+             "episode_starts", "episode_lengths", "episode_returns", "metadata")
+
+
+def load_demonstrations(path: str, env: gym.Env, num_trajs: Optional[int] = None) -> dict:
+    """Load experts/<env-id>.npz (format in README), check it belongs to `env`, keep the first
+    `num_trajs` episodes. Every problem is one clear SystemExit line."""
+    env_id = env.spec.id
+    if not os.path.isfile(path):
+        raise SystemExit(f"error: no demonstrations at '{path}'; record them with "
+                         f"`python expert.py --env-id {env_id}` or pass --expert-path")
+    try:
+        with np.load(path, allow_pickle=False) as f:
+            data = {k: f[k] for k in f.files}
+        meta = json.loads(str(data["metadata"]))
+    except Exception as e:
+        raise SystemExit(f"error: demonstrations '{path}' are unreadable or corrupt ({type(e).__name__}: {e}); "
+                         f"record them again with `python expert.py --env-id {env_id}`") from None
+    missing = [k for k in DEMO_KEYS if k not in data]
+    if missing:
+        raise SystemExit(f"error: demonstrations '{path}' lack {missing}; record them again with expert.py")
+    if meta.get("env_id") != env_id:
+        raise SystemExit(f"error: demonstrations '{path}' were recorded on {meta.get('env_id')}, not {env_id}; "
+                         f"pass the file for {env_id} with --expert-path")
+    obs_dim, act_dim = env.observation_space.shape[0], env.action_space.shape[0]
+    if data["observations"].shape[1:] != (obs_dim,) or data["actions"].shape[1:] != (act_dim,):
+        raise SystemExit(f"error: demonstrations '{path}' have obs/act dims {data['observations'].shape[1:]}/"
+                         f"{data['actions'].shape[1:]}, {env_id} has ({obs_dim},)/({act_dim},)")
+    num_episodes = len(data["episode_lengths"])
+    if num_trajs is not None:
+        if not 1 <= num_trajs <= num_episodes:
+            raise SystemExit(f"error: --num-expert-trajs {num_trajs}, but '{path}' holds {num_episodes} episodes")
+        end = int(data["episode_starts"][num_trajs - 1] + data["episode_lengths"][num_trajs - 1])
+        for k in ("observations", "actions", "next_observations", "rewards", "terminations", "truncations"):
+            data[k] = data[k][:end]
+        for k in ("episode_starts", "episode_lengths", "episode_returns"):
+            data[k] = data[k][:num_trajs]
+    data["metadata"] = meta
+    return data
+# --- end shared: demonstrations ---
+
+
+# --- shared: evaluation ---
+def evaluate(act, env_id: str, num_episodes: int, seed: int, capture_video_dir: Optional[str] = None):
+    """Deterministic policy on its own env; episode i starts from reset(seed=seed + i), so every
+    evaluation of a run sees the same start states. Returns the list of episode returns."""
+    env = make_env(env_id, seed, render_mode="rgb_array" if capture_video_dir else None)
+    if capture_video_dir:
+        env = gym.wrappers.RecordVideo(env, capture_video_dir, episode_trigger=lambda ep: ep == 0, disable_logger=True)
+    returns = []
+    for i in range(num_episodes):
+        obs, _ = env.reset(seed=seed + i)
+        done, ep_return = False, 0.0
+        while not done:
+            obs, reward, terminated, truncated, _ = env.step(act(obs, deterministic=True))
+            ep_return += float(reward)
+            done = terminated or truncated
+        returns.append(ep_return)
+    env.close()
+    return returns
+# --- end shared: evaluation ---
+
+
+# --- shared: run ---
+class Run:
+    """Everything around the method: the run directory (config.json, TensorBoard, results.json), evaluation
+    every --eval-freq steps, a progress line every 30 s, a checkpoint every --checkpoint-freq steps and on
+    Ctrl-C / SIGTERM, and --resume. `stateful` names the objects with state_dict() / load_state_dict() (the
+    learners with their optimisers, the replay buffer; a plain dict is saved as it is): a checkpoint is
+    their states, the RNG states and the run's progress."""
+
+    def __init__(self, args, checkpoint: Optional[dict], stateful: dict, expert_return: Optional[float], device):
+        self.args, self.stateful, self.expert_return = args, stateful, expert_return
+        default_name = f"{args.env_id}__{args.exp_name}__{args.seed}__{int(time.time())}"
+        self.name = checkpoint["run_name"] if checkpoint else (args.run_name or default_name)
+        self.dir = os.path.join("runs", self.name)
+        os.makedirs(self.dir, exist_ok=True)
+        with open(os.path.join(self.dir, "config.json"), "w") as f:
+            json.dump(asdict(args), f, indent=1)
+        if args.track:
+            import wandb
+
+            wandb.init(project=args.wandb_project_name, entity=args.wandb_entity, sync_tensorboard=True,
+                       config=vars(args), name=self.name, id=self.name, resume="allow", save_code=True)
+        from torch.utils.tensorboard import SummaryWriter
+
+        self.writer = SummaryWriter(self.dir)
+        table = "\n".join(f"|{k}|{v}|" for k, v in vars(args).items())
+        self.writer.add_text("hyperparameters", f"|param|value|\n|-|-|\n{table}")
+        self.machine = {"host": platform.node(), "torch": torch.__version__, "threads": torch.get_num_threads(),
+                        "device": str(device)}
+        self.evals, self.start_step, self.wall_offset = [], 0, 0.0
+        if checkpoint:
+            for name, obj in stateful.items():
+                if isinstance(obj, dict):
+                    obj.update({k: v.to(device) if torch.is_tensor(v) else v for k, v in checkpoint[name].items()})
+                else:
+                    obj.load_state_dict(checkpoint[name])
+            self.evals, self.start_step, self.wall_offset = checkpoint["evals"], checkpoint["step"], checkpoint["wall_time"]
+            set_rng_state(checkpoint["rng"])
+            print(f"resumed {self.dir} at step {self.start_step}")
+        self.stop_signal, self.sps, self.learn_steps, self.learn_time, self.last_print = 0, 0.0, 0, 0.0, 0.0
+        signal.signal(signal.SIGINT, self.on_signal)
+        signal.signal(signal.SIGTERM, self.on_signal)
+        self.start_time, self.tick = time.time(), time.perf_counter()
+
+    def on_signal(self, signum, frame):
+        if self.stop_signal:  # a second Ctrl-C stops at once
+            raise KeyboardInterrupt
+        self.stop_signal = signum
+        print(f"\nsignal {signum}: saving a checkpoint at the end of this step, then exiting", flush=True)
+
+    def log(self, metrics: dict, step: int) -> None:
+        for name, value in metrics.items():
+            self.writer.add_scalar(name, float(value), step)
+
+    def end_step(self, step: int, act, status: str = "") -> None:
+        """After env step `step` (counted from 1): speed, evaluation, progress line, checkpoint."""
+        args = self.args
+        if step > getattr(args, "learning_starts", 0):  # SPS counts the steps that learn, evaluation excluded
+            self.learn_steps, self.learn_time = self.learn_steps + 1, self.learn_time + time.perf_counter() - self.tick
+            self.sps = self.learn_steps / self.learn_time
+            if step % 1000 == 1:
+                self.log({"charts/SPS": self.sps}, step - 1)
+        if step % args.eval_freq == 0 or step == args.total_timesteps:
+            self.evaluate(step, act)
+        if time.time() - self.last_print > 30 or step == args.total_timesteps:
+            self.last_print = time.time()
+            left = format_time((args.total_timesteps - step) / self.sps) if self.sps > 0 else "?"
+            print(f"step {step}/{args.total_timesteps} | {self.sps:.0f} SPS | eval return {self.last_eval()}{status} | "
+                  f"left {left}", flush=True)
+        checkpoint_freq = getattr(args, "checkpoint_freq", 0)
+        if self.stop_signal or (checkpoint_freq and step % checkpoint_freq == 0 and step < args.total_timesteps):
+            self.save_checkpoint(step)
+            if self.stop_signal:
+                print(f"checkpoint saved at step {step}; continue with: python {sys.argv[0]} --resume {self.dir}")
+                self.writer.close()
+                sys.exit(128 + self.stop_signal)
+        self.tick = time.perf_counter()
+
+    def evaluate(self, step: int, act) -> None:
+        """--eval-episodes of the deterministic policy, logged and written to results.json."""
+        returns = evaluate(act, self.args.env_id, self.args.eval_episodes, seed=self.args.seed + 100_000)
+        mean, std = float(np.mean(returns)), float(np.std(returns))
+        normalized = mean / self.expert_return if self.expert_return else None
+        self.evals.append({"step": step, "mean": mean, "std": std, "normalized": normalized})
+        self.log({"eval/return": mean} | ({"eval/normalized_return": normalized} if normalized is not None else {}), step)
+        self.write_results(finished=False)
+
+    def last_eval(self) -> str:
+        if not self.evals:
+            return "-"
+        e = self.evals[-1]
+        versus = f" = {e['normalized']:.2f} x expert {self.expert_return:.1f}" if e["normalized"] is not None else ""
+        return f"{e['mean']:.1f} +- {e['std']:.1f}{versus} (step {e['step']})"
+
+    def save_checkpoint(self, step: int) -> None:
+        state = {name: dict(obj) if isinstance(obj, dict) else obj.state_dict() for name, obj in self.stateful.items()}
+        state.update(step=step, evals=self.evals, wall_time=self.wall_time(), rng=rng_state(), config=asdict(self.args),
+                     run_name=self.name)
+        path = os.path.join(self.dir, "checkpoint.pt")
+        torch.save(state, path + ".tmp")
+        os.replace(path + ".tmp", path)  # atomic: an interrupted save never leaves a broken checkpoint
+
+    def wall_time(self) -> float:
+        return self.wall_offset + time.time() - self.start_time
+
+    def write_results(self, finished: bool) -> None:
+        """results.json: the run's config, its evaluation curve and where it ran (format in README)."""
+        final = self.evals[-1] if self.evals else {}
+        results = {
+            "algo": self.args.exp_name, "env_id": self.args.env_id, "seed": self.args.seed, "finished": finished,
+            "evals": self.evals, "final_return": final.get("mean"), "final_normalized_return": final.get("normalized"),
+            "expert_return": self.expert_return, "wall_time_s": self.wall_time(), "sps": self.sps,
+            "machine": self.machine, "config": asdict(self.args),
+        }
+        path = os.path.join(self.dir, "results.json")
+        with open(path + ".tmp", "w") as f:
+            json.dump(results, f, indent=1)
+        os.replace(path + ".tmp", path)
+
+    def finish(self, act, models: dict, status: str = "") -> None:
+        """The last checkpoint and results.json, the models (unless --no-save-model), a video (--capture-video)."""
+        args = self.args
+        if hasattr(args, "checkpoint_freq"):  # scripts without checkpoints (bc.py) have no such flag
+            self.save_checkpoint(args.total_timesteps)
+        self.write_results(finished=True)
+        if args.save_model:
+            for filename, content in models.items():
+                torch.save(content, os.path.join(self.dir, filename))
+            print(f"saved {', '.join(os.path.join(self.dir, filename) for filename in models)}")
+        if args.capture_video:
+            evaluate(act, args.env_id, 1, seed=args.seed + 100_000, capture_video_dir=os.path.join(self.dir, "videos"))
+        self.writer.close()
+        if self.evals:
+            print(f"done: {args.total_timesteps} steps in {format_time(self.wall_time())}, final eval return "
+                  f"{self.last_eval()}{status}")
+
+
+def format_time(seconds: float) -> str:
+    seconds = int(seconds)
+    return f"{seconds // 3600}h{seconds % 3600 // 60:02d}m" if seconds >= 3600 else f"{seconds // 60}m{seconds % 60:02d}s"
+
+
+def resume(args):
+    """--resume: the saved checkpoint, and the saved run's config with the fields a user may change on
+    resume (total_timesteps, cuda, threads) taken from the command line where they differ from their defaults."""
+    path = os.path.join(args.resume, "checkpoint.pt") if os.path.isdir(args.resume) else args.resume
+    if not os.path.isfile(path):
+        raise SystemExit(f"error: no checkpoint at '{path}'; pass --resume runs/<run> of a run that saved one")
+    try:
+        checkpoint = torch.load(path, map_location="cpu", weights_only=False)
+    except Exception as e:
+        raise SystemExit(f"error: cannot read checkpoint '{path}' ({type(e).__name__}: {e})") from None
+    saved = type(args)(**{f.name: checkpoint["config"][f.name] for f in fields(args) if f.name in checkpoint["config"]})
+    for name in ("total_timesteps", "cuda", "threads", "compile", "cudagraphs"):
+        if hasattr(args, name) and getattr(args, name) != getattr(type(args)(), name):
+            setattr(saved, name, getattr(args, name))
+    saved.resume = args.resume
+    return saved, checkpoint
+
+
+def rng_state() -> dict:
+    return {"python": random.getstate(), "numpy": np.random.get_state(), "torch": torch.get_rng_state(),
+            "cuda": torch.cuda.get_rng_state_all() if torch.cuda.is_available() else None}
+
+
+def set_rng_state(state: dict) -> None:
+    random.setstate(state["python"])
+    np.random.set_state(state["numpy"])
+    torch.set_rng_state(state["torch"])
+    if state["cuda"] is not None and torch.cuda.is_available():
+        torch.cuda.set_rng_state_all(state["cuda"])
+# --- end shared: run ---
+
+
 if __name__ == "__main__":
     args = tyro.cli(Args)
     torch.set_num_threads(args.threads)
@@ -393,48 +488,34 @@ if __name__ == "__main__":
     env = make_env(args.env_id, args.seed)
     obs_dim, act_dim = env.observation_space.shape[0], env.action_space.shape[0]
     low, high = env.action_space.low, env.action_space.high
-    demos = load_demonstrations(args.expert_path or os.path.join("experts", f"{args.env_id}.npz"), env, args.num_expert_trajs)
-    expert_return = float(demos["episode_returns"].mean())
+    demos = load_demonstrations(args.expert_path or f"experts/{args.env_id}.npz", env, args.num_expert_trajs)
     expert_obs = torch.as_tensor(demos["observations"], device=device)
     expert_next_obs = torch.as_tensor(demos["next_observations"], device=device)
     post_steps = int(round(args.alpha * args.pre_demo_steps))
     if args.total_timesteps is not None:  # benchmark.py passes every script an env-step budget
         args.iterations = max(0, (args.total_timesteps - args.pre_demo_steps) // max(post_steps, 1))
+    budget = args.pre_demo_steps + args.iterations * post_steps
+    args.total_timesteps = budget if args.total_timesteps is None else args.total_timesteps  # recorded in the config
     print(f"BCO({args.alpha}): {args.pre_demo_steps} exploration steps, then {args.iterations} iterations of "
-          f"{post_steps} env steps: {args.pre_demo_steps + args.iterations * post_steps} env steps in all")
+          f"{post_steps} env steps: {budget} env steps in all")
 
-    run_name = args.run_name or f"{args.env_id}__{args.exp_name}__{args.seed}__{int(time.time())}"
-    run_dir = os.path.join("runs", run_name)
-    os.makedirs(run_dir, exist_ok=True)
-    with open(os.path.join(run_dir, "config.json"), "w") as f:
-        json.dump(asdict(args), f, indent=1)
-    if args.track:
-        import wandb
-
-        wandb.init(project=args.wandb_project_name, entity=args.wandb_entity, sync_tensorboard=True,
-                   config=vars(args), name=run_name, save_code=True)
-    from torch.utils.tensorboard import SummaryWriter
-
-    writer = SummaryWriter(run_dir)
-    writer.add_text("hyperparameters", "|param|value|\n|-|-|\n" + "\n".join(f"|{k}|{v}|" for k, v in vars(args).items()))
-
-    # ALGO LOGIC: the policy and the inverse dynamics model
-    actor = Actor(obs_dim, act_dim, low, high, args.hidden_dim).to(device)
+    # ALGO LOGIC: the policy (the agent) and the inverse dynamics model
+    agent = Actor(obs_dim, act_dim, low, high, args.hidden_dim).to(device)
     inverse = InverseDynamics(obs_dim, act_dim, low, high, args.hidden_dim).to(device)
-    actor_optimizer = torch.optim.Adam(actor.parameters(), lr=args.learning_rate)
+    agent_optimizer = torch.optim.Adam(agent.parameters(), lr=args.learning_rate)
     inverse_optimizer = torch.optim.Adam(inverse.parameters(), lr=args.learning_rate)
-    act = make_act_fn(actor, obs_dim, device, cudagraphs=False)
-    machine = machine_info(device)
-    clone_loss = lambda obs, actions: -actor.log_prob(obs, actions).mean()
+    clone_loss = lambda obs, actions: -agent.log_prob(obs, actions).mean()
+    run = Run(args, None, {}, float(demos["episode_returns"].mean()), device)
+    signal.signal(signal.SIGINT, signal.default_int_handler)  # no checkpoints here: Ctrl-C stops at once
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
     # TRY NOT TO MODIFY: the pre-demonstration phase, then BCO(alpha)'s iterations
-    start_time, evals = time.time(), []
     obs, _ = env.reset(seed=args.seed)
     data, obs = collect(env, None, args.pre_demo_steps, obs, device)
     env_steps = args.pre_demo_steps
     for iteration in range(args.iterations + 1):
         if iteration > 0:  # post-demonstration: the current (stochastic) policy gathers alpha * |pre| steps
-            new, obs = collect(env, act, post_steps, obs, device)
+            new, obs = collect(env, agent.act, post_steps, obs, device)
             env_steps += post_steps
             data = tuple(torch.cat([d, n]) for d, n in zip(data, new)) if args.inverse_data == "aggregate" else new
         first = iteration == 0
@@ -442,30 +523,17 @@ if __name__ == "__main__":
                              args.inverse_steps if first else args.inverse_steps_per_iteration, args.batch_size)
         with torch.no_grad():
             inferred = inverse(expert_obs, expert_next_obs)  # inside the box by construction
-        bc_loss = train(clone_loss, actor_optimizer, (expert_obs, inferred),
+        bc_loss = train(clone_loss, agent_optimizer, (expert_obs, inferred),
                         args.bc_steps if first else args.bc_steps_per_iteration, args.batch_size)
-        returns = evaluate(act, args.env_id, args.eval_episodes, seed=args.seed + 100_000)
-        mean = float(np.mean(returns))
-        evals.append({"step": env_steps, "mean": mean, "std": float(np.std(returns)), "normalized": mean / expert_return,
-                      "iteration": iteration})
-        for name, value in (("losses/inverse", inverse_loss), ("losses/bc", bc_loss), ("eval/return", mean),
-                            ("eval/normalized_return", mean / expert_return), ("charts/env_steps", env_steps)):
-            writer.add_scalar(name, value, iteration)
-        write_results(os.path.join(run_dir, "results.json"), args, evals, expert_return, time.time() - start_time,
-                      env_steps / (time.time() - start_time), machine, finished=iteration == args.iterations)
+        run.log({"losses/inverse": inverse_loss, "losses/bc": bc_loss, "charts/env_steps": env_steps}, iteration)
+        run.sps = env_steps / run.wall_time()
+        run.evaluate(env_steps, agent.act)  # logged against env steps, like every script's evaluation
+        run.evals[-1]["iteration"] = iteration
         print(f"iteration {iteration}/{args.iterations} | {env_steps} env steps | inverse loss {inverse_loss:.4f} | "
-              f"bc loss {bc_loss:.3f} | eval return {mean:.1f} = {mean / expert_return:.2f} x expert {expert_return:.1f}",
-              flush=True)
+              f"bc loss {bc_loss:.3f} | eval return {run.last_eval()}", flush=True)
 
-    if args.save_model:
-        save_actor(os.path.join(run_dir, "actor.pt"), actor, args.env_id, obs_dim, act_dim, args.hidden_dim,
-                   training_steps=env_steps)
-        torch.save({"inverse_model": inverse.state_dict(), "env_id": args.env_id, "obs_dim": obs_dim, "act_dim": act_dim,
-                    "hidden_dim": args.hidden_dim}, os.path.join(run_dir, "inverse_model.pt"))
-        print(f"saved {run_dir}/actor.pt and {run_dir}/inverse_model.pt")
-    if args.capture_video:
-        evaluate(act, args.env_id, 1, seed=args.seed + 100_000, capture_video_dir=os.path.join(run_dir, "videos"))
+    inverse_file = {"inverse_model": inverse.state_dict(), "env_id": args.env_id, "obs_dim": obs_dim, "act_dim": act_dim,
+                    "hidden_dim": args.hidden_dim}
+    run.finish(agent.act, {"actor.pt": actor_file(agent, args.env_id, training_steps=env_steps),
+                           "inverse_model.pt": inverse_file})
     env.close()
-    writer.close()
-    print(f"done: {env_steps} env steps in {format_time(time.time() - start_time)}, final eval return "
-          f"{evals[-1]['mean']:.1f} +- {evals[-1]['std']:.1f} ({evals[-1]['normalized']:.2f} x expert {expert_return:.1f})")

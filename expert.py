@@ -9,8 +9,9 @@ demonstrations with the deterministic policy into `experts/<env-id>.npz` and cop
 them (`experts/<env-id>-actor.pt`). `python expert.py --env-id Hopper-v4 --record-from <actor.pt>`
 records from any saved actor of this project without training.
 
-The SAC here is the block every algorithm script of the project copies (see the `# --- shared:`
-markers; tests/test_shared_blocks.py keeps the copies identical).
+The env, actor, SAC, demonstrations, evaluation and run blocks are gail.py's (see the `# --- shared:`
+markers; tests/test_shared_blocks.py keeps the copies identical). What only this script needs comes
+first: the fast update and acting paths, loading an actor, and recording demonstrations.
 
 Implementation choices and deviations
 1. Actor and critic are updated once per env step (the original SAC and SB3 cadence), not CleanRL's
@@ -33,8 +34,13 @@ Implementation choices and deviations
    counter, RNG states and the evaluation history. The training episode in progress when the
    checkpoint was written is cut: the resumed run starts a new episode from a reset seeded by
    (seed, step). A resumed run is therefore deterministic but not bit-identical to an uninterrupted one.
+   A checkpoint saved without its replay buffer (to move it between machines) resumes too: the current
+   policy refills the buffer for `--learning-starts` steps before updates resume.
 7. Demonstrations are the first `--num-demos` episodes of the deterministic policy on resets seeded
-   `--demo-seed + i`; none is filtered out, and the metadata says so.
+   `--demo-seed + i`; none is filtered out, unless `--full-episodes-only` discards the episodes that
+   end before the time limit. The metadata says which, and lists every episode tried.
+8. Beside results.json the run keeps `actor_best.pt` (the actor of the best evaluation so far: experts
+   are picked by it) and writes `actor.pt` with every checkpoint.
 
 Logged metrics: charts/episodic_return, charts/episodic_length, charts/SPS, eval/return,
 eval/return_std, losses/qf_loss, losses/qf_values, losses/actor_loss, losses/alpha, losses/alpha_loss,
@@ -46,11 +52,10 @@ import os
 import platform
 import random
 import signal
-import subprocess
 import sys
 import time
 from dataclasses import asdict, dataclass, fields
-from typing import Optional
+from typing import NamedTuple, Optional
 
 import gymnasium as gym
 import numpy as np
@@ -100,25 +105,25 @@ class Args:
     total_timesteps: int = 1_000_000
     """total env steps of training"""
     buffer_size: int = 1_000_000
-    """the replay memory buffer size"""
+    """the replay buffer size"""
     gamma: float = 0.99
-    """the discount factor gamma"""
+    """the discount factor"""
     tau: float = 0.005
-    """target smoothing coefficient"""
+    """the target smoothing coefficient"""
     batch_size: int = 256
     """the batch size of a SAC update"""
     learning_starts: int = 5_000
-    """env steps of uniform random actions before learning starts"""
+    """env steps of uniform random actions before any update"""
     policy_lr: float = 3e-4
     """the learning rate of the actor (and of alpha)"""
     q_lr: float = 3e-4
     """the learning rate of the critics"""
     alpha: float = 0.2
-    """entropy temperature (the initial value when autotuned)"""
+    """the entropy temperature (the initial value when autotuned)"""
     autotune: bool = True
-    """tune alpha automatically towards the target entropy -|A|"""
+    """tune the temperature towards -|A|"""
     hidden_dim: int = 256
-    """width of the two hidden layers of actor and critics"""
+    """width of the actor's and critics' two hidden layers"""
     eval_freq: int = 10_000
     """evaluate the deterministic policy every this many env steps"""
     eval_episodes: int = 10
@@ -140,6 +145,153 @@ class Args:
     num_demos are kept); the metadata records every episode tried"""
     max_demo_tries: int = 200
     """with --full-episodes-only, give up after this many episodes"""
+
+
+# What only expert.py needs: the fast update and acting paths (--compile, --cudagraphs), then the demonstrations
+def make_update_fn(agent: "SAC", rb: "ReplayBuffer", args):
+    """Returns step() -> metrics: one SAC update on a sampled batch with the env's reward, plain, compiled
+    or replayed from a CUDA graph."""
+    update = torch.compile(agent.update) if args.compile else agent.update
+    learn = lambda batch: update(batch.obs, batch.actions, batch.next_obs, batch.rewards, batch.terminations)
+    if not args.cudagraphs:
+        return lambda: learn(rb.sample(args.batch_size))
+    idx = torch.randint(0, rb.size, (args.batch_size,), device=rb.storage.device)  # the graph gathers these rows
+    stream = torch.cuda.Stream()
+    stream.wait_stream(torch.cuda.current_stream())
+    with torch.cuda.stream(stream):  # warm-up on a side stream (these are real updates)
+        for _ in range(3):
+            learn(rb.batch(idx))
+    torch.cuda.current_stream().wait_stream(stream)
+    graph = torch.cuda.CUDAGraph()
+    with torch.cuda.graph(graph):
+        static_metrics = learn(rb.batch(idx))
+
+    def step():
+        torch.randint(0, rb.size, (args.batch_size,), device=idx.device, out=idx)
+        graph.replay()
+        return {name: value.clone() for name, value in static_metrics.items()}
+
+    return step
+
+
+def graphed_act(actor: "Actor", obs_dim: int, device):
+    """actor.act with its two forward passes (sampled, mean) captured once in CUDA graphs and replayed."""
+    static_obs = torch.zeros(1, obs_dim, device=device)
+    graphs, outputs = {}, {}
+    for det in (False, True):
+        actor.act(np.zeros(obs_dim), det)  # warm-up
+        graphs[det] = torch.cuda.CUDAGraph()
+        with torch.no_grad(), torch.cuda.graph(graphs[det]):
+            outputs[det] = actor.deterministic(static_obs) if det else actor.sample(static_obs)[0]
+
+    def act(obs, deterministic=False):
+        static_obs.copy_(torch.as_tensor(obs, dtype=torch.float32).unsqueeze(0))
+        graphs[deterministic].replay()
+        return outputs[deterministic][0].cpu().numpy()
+
+    return act
+
+
+def load_actor(path: str, env: gym.Env, device="cpu"):
+    """Rebuild a saved actor (any script's actor.pt) for `env`, with clear errors for a missing file or
+    another env's actor."""
+    if not os.path.isfile(path):
+        raise SystemExit(f"error: no actor checkpoint at '{path}'")
+    try:
+        ckpt = torch.load(path, map_location="cpu", weights_only=True)
+    except Exception as e:
+        raise SystemExit(f"error: cannot read actor checkpoint '{path}' ({type(e).__name__}: {e})") from None
+    obs_dim, act_dim = env.observation_space.shape[0], env.action_space.shape[0]
+    if (ckpt.get("obs_dim"), ckpt.get("act_dim")) != (obs_dim, act_dim):
+        raise SystemExit(f"error: actor '{path}' was saved for {ckpt.get('env_id')} (obs {ckpt.get('obs_dim')}, "
+                         f"act {ckpt.get('act_dim')}), not for {env.spec.id} (obs {obs_dim}, act {act_dim})")
+    actor = Actor(obs_dim, act_dim, env.action_space.low, env.action_space.high, ckpt["hidden_dim"])
+    actor.load_state_dict(ckpt["actor"])
+    return actor.to(device).eval(), ckpt
+
+
+def record_demonstrations(act, env_id: str, num_episodes: int, seed: int, full_episodes_only: bool = False,
+                          max_tries: int = 200) -> tuple[dict, list]:
+    """Run the deterministic policy on resets seeded seed + i, i = 0, 1, ..., until `num_episodes` are kept.
+
+    With `full_episodes_only`, an episode that terminates (falls) before the time limit is discarded;
+    Returns the demonstrations and every episode run as (reset seed, length, return, kept)."""
+    env = make_env(env_id, seed)
+    keys = ("observations", "actions", "next_observations", "rewards", "terminations", "truncations")
+    buf = {k: [] for k in keys}
+    starts, lengths, returns, tried = [], [], [], []
+    i = 0
+    while len(lengths) < num_episodes:
+        if i >= max_tries:
+            raise SystemExit(f"error: only {len(lengths)} of {i} episodes reached the time limit; "
+                             f"train the expert longer or raise --max-demo-tries")
+        obs, _ = env.reset(seed=seed + i)
+        episode = {k: [] for k in keys}
+        done, ep_return = False, 0.0
+        while not done:
+            action = act(obs, deterministic=True)
+            next_obs, reward, terminated, truncated, _ = env.step(action)
+            for k, v in zip(keys, (obs, action, next_obs, reward, terminated, truncated)):
+                episode[k].append(v)
+            ep_return += float(reward)
+            obs, done = next_obs, terminated or truncated
+        keep = not (full_episodes_only and terminated)
+        tried.append((seed + i, len(episode["rewards"]), ep_return, keep))
+        i += 1
+        if keep:
+            starts.append(len(buf["rewards"]))
+            for k in keys:
+                buf[k].extend(episode[k])
+            lengths.append(len(episode["rewards"]))
+            returns.append(ep_return)
+    env.close()
+    demos = {k: np.asarray(v, dtype=bool if k in ("terminations", "truncations") else np.float32) for k, v in buf.items()}
+    demos.update(episode_starts=np.asarray(starts, dtype=np.int64), episode_lengths=np.asarray(lengths, dtype=np.int64),
+                 episode_returns=np.asarray(returns, dtype=np.float64))
+    return demos, tried
+
+
+def save_demonstrations(path: str, demos: dict, metadata: dict) -> None:
+    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
+    np.savez_compressed(path, **demos, metadata=np.array(json.dumps(metadata)))
+
+
+def record_and_save(act, actor: "Actor", args, training_steps: int, source: str):
+    """Record the demonstrations, write them with their metadata, copy the actor beside them, load them back."""
+    import mujoco
+
+    demo_path = args.demo_path or os.path.join("experts", f"{args.env_id}.npz")
+    demos, tried = record_demonstrations(act, args.env_id, args.num_demos, args.demo_seed, args.full_episodes_only,
+                                         args.max_demo_tries)
+    returns = demos["episode_returns"]
+    all_returns = np.array([t[2] for t in tried])
+    if args.full_episodes_only:
+        selection = (f"the first {args.num_demos} episodes of the deterministic policy (tanh of the mean) that "
+                     f"reached the time limit, trying resets seeded {args.demo_seed}, {args.demo_seed} + 1, ...: "
+                     f"{len(tried) - args.num_demos} of {len(tried)} tried fell first and were discarded")
+    else:
+        selection = (f"the first {args.num_demos} episodes of the deterministic policy (tanh of the mean), "
+                     f"episode i reset with seed {args.demo_seed} + i; no episode filtered out")
+    metadata = {
+        "env_id": args.env_id, "gymnasium_version": gym.__version__, "mujoco_version": mujoco.__version__,
+        "torch_version": torch.__version__, "expert_training_steps": training_steps, "expert_source": source,
+        "training_seed": args.seed, "demo_seed": args.demo_seed, "num_episodes": args.num_demos,
+        "selection": selection,
+        "episodes_tried": [{"reset_seed": a, "length": b, "return": c, "kept": d} for a, b, c, d in tried],
+        "tried_return_mean": float(all_returns.mean()), "tried_return_std": float(all_returns.std()),
+        "return_mean": float(returns.mean()), "return_std": float(returns.std()),
+        "return_min": float(returns.min()), "return_max": float(returns.max()),
+        "actions": "env units (the env's action box), as sent to env.step",
+        "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+    }
+    save_demonstrations(demo_path, demos, metadata)
+    actor_path = os.path.splitext(demo_path)[0] + "-actor.pt"
+    if os.path.abspath(actor_path) != os.path.abspath(source):
+        torch.save(actor_file(actor, args.env_id, training_steps=training_steps), actor_path)
+    check = load_demonstrations(demo_path, make_env(args.env_id, args.seed))  # round trip
+    print(f"recorded {len(check['episode_lengths'])} episodes ({len(tried)} tried), {len(check['rewards'])} "
+          f"transitions, return {returns.mean():.1f} +- {returns.std():.1f} (min {returns.min():.1f}) -> "
+          f"{demo_path}, {actor_path}")
 
 
 # --- shared: env ---
@@ -175,9 +327,7 @@ class Actor(nn.Module):
 
     def __init__(self, obs_dim: int, act_dim: int, action_low, action_high, hidden_dim: int = 256):
         super().__init__()
-        self.net = nn.Sequential(
-            nn.Linear(obs_dim, hidden_dim), nn.ReLU(), nn.Linear(hidden_dim, hidden_dim), nn.ReLU()
-        )
+        self.net = nn.Sequential(nn.Linear(obs_dim, hidden_dim), nn.ReLU(), nn.Linear(hidden_dim, hidden_dim), nn.ReLU())
         self.fc_mean = nn.Linear(hidden_dim, act_dim)
         self.fc_logstd = nn.Linear(hidden_dim, act_dim)
         low = torch.as_tensor(action_low, dtype=torch.float32)
@@ -216,31 +366,18 @@ class Actor(nn.Module):
     def deterministic(self, obs):
         return torch.tanh(self(obs)[0]) * self.action_scale + self.action_bias
 
+    @torch.no_grad()
+    def act(self, obs: np.ndarray, deterministic: bool = False) -> np.ndarray:
+        """The action for one env step: sampled, or the mean action (evaluation)."""
+        obs = torch.as_tensor(obs, dtype=torch.float32, device=self.action_scale.device).unsqueeze(0)
+        return (self.deterministic(obs) if deterministic else self.sample(obs)[0])[0].cpu().numpy()
 
-def make_act_fn(actor: Actor, obs_dim: int, device, cudagraphs: bool):
-    """Returns act(obs: np.ndarray, deterministic: bool) -> np.ndarray, for one env step."""
-    def act(obs, deterministic=False):
-        with torch.no_grad():
-            o = torch.as_tensor(obs, dtype=torch.float32, device=device).unsqueeze(0)
-            a = actor.deterministic(o) if deterministic else actor.sample(o)[0]
-        return a[0].cpu().numpy()
 
-    if not cudagraphs:
-        return act
-    static_obs = torch.zeros(1, obs_dim, device=device)
-    graphs, outputs = {}, {}
-    for det in (False, True):
-        act(np.zeros(obs_dim), det)  # warm-up
-        graphs[det] = torch.cuda.CUDAGraph()
-        with torch.no_grad(), torch.cuda.graph(graphs[det]):
-            outputs[det] = actor.deterministic(static_obs) if det else actor.sample(static_obs)[0]
-
-    def act_graphed(obs, deterministic=False):
-        static_obs.copy_(torch.as_tensor(obs, dtype=torch.float32).unsqueeze(0))
-        graphs[deterministic].replay()
-        return outputs[deterministic][0].cpu().numpy()
-
-    return act_graphed
+def actor_file(actor: Actor, env_id: str, **extra) -> dict:
+    """What actor.pt holds: the actor and what rebuilds it (`expert.py --record-from` reads any script's)."""
+    obs_dim, hidden_dim, act_dim = actor.net[0].in_features, actor.fc_mean.in_features, actor.fc_mean.out_features
+    return {"actor": actor.state_dict(), "env_id": env_id, "obs_dim": obs_dim, "act_dim": act_dim,
+            "hidden_dim": hidden_dim, **extra}
 # --- end shared: actor ---
 
 
@@ -252,8 +389,7 @@ class TwinQ(nn.Module):
     def __init__(self, obs_dim: int, act_dim: int, hidden_dim: int = 256, num_q: int = 2):
         super().__init__()
         sizes = [obs_dim + act_dim, hidden_dim, hidden_dim, 1]
-        self.weights = nn.ParameterList()
-        self.biases = nn.ParameterList()
+        self.weights, self.biases = nn.ParameterList(), nn.ParameterList()
         for fan_in, fan_out in zip(sizes[:-1], sizes[1:]):
             bound = 1.0 / np.sqrt(fan_in)  # nn.Linear's default initialisation
             self.weights.append(nn.Parameter(torch.empty(num_q, fan_in, fan_out).uniform_(-bound, bound)))
@@ -261,40 +397,31 @@ class TwinQ(nn.Module):
 
     def forward(self, obs, action, detach_params: bool = False):
         x = torch.cat([obs, action], -1).unsqueeze(0).expand(len(self.weights[0]), -1, -1)
-        last = len(self.weights) - 1
         for i, (w, b) in enumerate(zip(self.weights, self.biases)):
             if detach_params:  # gradients flow to the input (the action) only
                 w, b = w.detach(), b.detach()
             x = torch.baddbmm(b, x, w)
-            if i < last:
-                x = F.relu(x)
+            x = F.relu(x) if i < len(self.weights) - 1 else x
         return x.squeeze(-1)
 
 
-class SAC(nn.Module):
-    """Actor, twin critics, target critics and the temperature, with one `update` per env step.
-    absorbing=True (DAC's absorbing states, `--termination-remedy absorbing` of the imitation scripts):
-    observations carry a last indicator column, 1 at the absorbing state that follows a termination.
-    The actor never sees that column; at the absorbing state the only action is zero, so it has no
-    entropy term and no actor or temperature loss."""
+class SAC:
+    """Actor, twin critics, target critics and the temperature, each with its optimiser; one `update` per
+    env step. absorbing=True (DAC's absorbing states, `--termination-remedy absorbing`): observations carry
+    a last indicator column, 1 at the absorbing state that follows a termination. The actor never sees
+    that column; at the absorbing state the only action is zero, so it has no entropy term and no actor
+    or temperature loss."""
 
-    def __init__(self, obs_dim, act_dim, action_low, action_high, args, device, capturable: bool = False,
-                 absorbing: bool = False):
-        super().__init__()
-        self.absorbing = absorbing
-        self.actor = Actor(obs_dim - absorbing, act_dim, action_low, action_high, args.hidden_dim)
-        self.qf = TwinQ(obs_dim, act_dim, args.hidden_dim)
-        self.qf_target = TwinQ(obs_dim, act_dim, args.hidden_dim)
+    def __init__(self, obs_dim, act_dim, action_low, action_high, args, device, absorbing: bool = False):
+        self.absorbing, self.gamma, self.tau, self.target_entropy = absorbing, args.gamma, args.tau, -float(act_dim)
+        self.actor = Actor(obs_dim - absorbing, act_dim, action_low, action_high, args.hidden_dim).to(device)
+        self.qf = TwinQ(obs_dim, act_dim, args.hidden_dim).to(device)
+        self.qf_target = TwinQ(obs_dim, act_dim, args.hidden_dim).to(device).requires_grad_(False)
         self.qf_target.load_state_dict(self.qf.state_dict())
-        self.qf_target.requires_grad_(False)
-        self.log_alpha = nn.Parameter(torch.tensor(float(np.log(args.alpha))), requires_grad=args.autotune)
-        self.target_entropy = -float(act_dim)
-        self.gamma, self.tau = args.gamma, args.tau
-        self.to(device)
-        adam = dict(capturable=capturable, fused=True)  # capturable: the optimiser steps can sit in a CUDA graph
-        self.q_optimizer = torch.optim.Adam(self.qf.parameters(), lr=args.q_lr, **adam)
-        self.actor_optimizer = torch.optim.Adam(self.actor.parameters(), lr=args.policy_lr, **adam)
-        self.alpha_optimizer = torch.optim.Adam([self.log_alpha], lr=args.policy_lr, **adam) if args.autotune else None
+        self.log_alpha = torch.tensor(float(np.log(args.alpha)), device=device, requires_grad=args.autotune)
+        self.q_optimizer = torch.optim.Adam(self.qf.parameters(), lr=args.q_lr, fused=True)
+        self.actor_optimizer = torch.optim.Adam(self.actor.parameters(), lr=args.policy_lr, fused=True)
+        self.alpha_optimizer = torch.optim.Adam([self.log_alpha], lr=args.policy_lr, fused=True) if args.autotune else None
 
     def policy(self, obs):
         """a ~ pi(.|s) and log pi(a|s); with absorbing states, a = 0 and log pi = 0 where s is absorbing."""
@@ -328,9 +455,9 @@ class SAC(nn.Module):
         alpha_loss = -mean(self.log_alpha.exp() * (log_pi.detach() + self.target_entropy))
         return actor_loss, alpha_loss, -mean(log_pi.detach())
 
-    def update(self, obs, actions, next_obs, rewards, terminations):
+    def update(self, obs, actions, next_obs, rewards, terminations, prefix: str = "losses/") -> dict:
         """One SAC step: critics, then actor and temperature on the updated critics, then targets.
-        Returns a tensor of metrics (no .item() here: reading it synchronises)."""
+        Returns metric tensors keyed by their logged names (no .item() here: reading one synchronises)."""
         qf_loss, q_mean = self.critic_loss(obs, actions, next_obs, rewards, terminations)
         self.q_optimizer.zero_grad(set_to_none=False)
         qf_loss.backward()
@@ -348,15 +475,35 @@ class SAC(nn.Module):
 
         with torch.no_grad():
             torch._foreach_lerp_(list(self.qf_target.parameters()), list(self.qf.parameters()), self.tau)
-        return torch.stack([qf_loss, q_mean, actor_loss, alpha_loss, self.log_alpha.exp(), entropy]).detach()
+        metrics = dict(qf_loss=qf_loss, qf_values=q_mean, actor_loss=actor_loss, alpha_loss=alpha_loss, entropy=entropy)
+        return {prefix + name: value.detach() for name, value in metrics.items()} | {prefix + "alpha": self.log_alpha.exp()}
+
+    def parts(self) -> dict:
+        parts = dict(actor=self.actor, qf=self.qf, qf_target=self.qf_target, q_optimizer=self.q_optimizer,
+                     actor_optimizer=self.actor_optimizer, alpha_optimizer=self.alpha_optimizer)
+        return {name: part for name, part in parts.items() if part is not None}
+
+    def state_dict(self) -> dict:
+        """Networks, temperature and optimisers: all a resumed run needs (CORL's pattern)."""
+        return {name: part.state_dict() for name, part in self.parts().items()} | {"log_alpha": self.log_alpha.detach()}
+
+    def load_state_dict(self, state: dict) -> None:
+        for name, part in self.parts().items():
+            part.load_state_dict(state[name])
+        self.log_alpha.data.copy_(state["log_alpha"])
 
 
-METRIC_NAMES = ["qf_loss", "qf_values", "actor_loss", "alpha_loss", "alpha", "entropy"]
+class Batch(NamedTuple):
+    obs: torch.Tensor
+    actions: torch.Tensor
+    next_obs: torch.Tensor
+    rewards: torch.Tensor  # the env's reward: logged and measured, never learned from by an imitation script
+    terminations: torch.Tensor
+    extra: torch.Tensor  # the columns a script adds (rile.py: the trainer's action)
 
 
 class ReplayBuffer:
-    """Preallocated transitions, one row each: [obs | action | next_obs | reward | terminated | extra].
-    `extra_dim` columns hold whatever else a script stores per transition (none for plain SAC)."""
+    """Preallocated transitions, one row each: [obs | action | next_obs | reward | terminated | extra]."""
 
     def __init__(self, obs_dim: int, act_dim: int, capacity: int, device, extra_dim: int = 0):
         self.obs_dim, self.act_dim, self.capacity = obs_dim, act_dim, capacity
@@ -365,25 +512,22 @@ class ReplayBuffer:
 
     def add(self, obs, action, next_obs, reward, terminated, extra=()):
         row = np.concatenate([obs, action, next_obs, [reward, float(terminated)], extra]).astype(np.float32)
-        self.storage[self.pos].copy_(torch.from_numpy(row), non_blocking=False)
+        self.storage[self.pos].copy_(torch.from_numpy(row))
         self.pos = (self.pos + 1) % self.capacity
         self.size = min(self.size + 1, self.capacity)
 
-    def sample(self, batch_size: int, recent: Optional[int] = None):
+    def sample(self, batch_size: int, recent: Optional[int] = None) -> Batch:
         """Uniform rows; with `recent`, only from the last `recent` added (a FIFO buffer of that size)."""
         window = self.size if recent is None else min(recent, self.size)
         idx = torch.randint(0, window, (batch_size,), device=self.storage.device)
         if window < self.size:
             idx = (self.pos - 1 - idx) % self.capacity
-        return self.storage[idx]
+        return self.batch(idx)
 
-    def split(self, rows):
-        """rows (B, width) -> obs, actions, next_obs, rewards, terminations."""
-        o, a = self.obs_dim, self.act_dim
-        return rows[:, :o], rows[:, o : o + a], rows[:, o + a : 2 * o + a], rows[:, 2 * o + a], rows[:, 2 * o + a + 1]
-
-    def extra(self, rows):
-        return rows[:, 2 * self.obs_dim + self.act_dim + 2 :]
+    def batch(self, idx) -> Batch:
+        rows, o, a = self.storage[idx], self.obs_dim, self.act_dim
+        return Batch(rows[:, :o], rows[:, o : o + a], rows[:, o + a : 2 * o + a], rows[:, 2 * o + a],
+                     rows[:, 2 * o + a + 1], rows[:, 2 * o + a + 2 :])
 
     def state_dict(self):
         return {"storage": self.storage[: self.size].cpu().clone(), "pos": self.pos, "size": self.size}
@@ -392,177 +536,6 @@ class ReplayBuffer:
         self.size, self.pos = state["size"], state["pos"]
         self.storage[: self.size].copy_(state["storage"])
 # --- end shared: sac ---
-
-
-def make_update_fn(agent: SAC, rb: ReplayBuffer, args):
-    """Returns step() -> metrics tensor: sample a batch and run one SAC update, plain, compiled or
-    replayed from a CUDA graph."""
-    update = torch.compile(agent.update) if args.compile else agent.update
-    if not args.cudagraphs:
-        return lambda: update(*rb.split(rb.sample(args.batch_size)))
-    static_rows = rb.sample(args.batch_size)
-    stream = torch.cuda.Stream()
-    stream.wait_stream(torch.cuda.current_stream())
-    with torch.cuda.stream(stream):  # warm-up on a side stream (these are real updates)
-        for _ in range(3):
-            update(*rb.split(static_rows))
-    torch.cuda.current_stream().wait_stream(stream)
-    graph = torch.cuda.CUDAGraph()
-    with torch.cuda.graph(graph):
-        static_metrics = update(*rb.split(static_rows))
-
-    def step():
-        torch.index_select(rb.storage, 0, torch.randint(0, rb.size, (args.batch_size,), device=rb.storage.device), out=static_rows)
-        graph.replay()
-        return static_metrics.clone()
-
-    return step
-
-
-# --- shared: evaluation ---
-def evaluate(act, env_id: str, num_episodes: int, seed: int, capture_video_dir: Optional[str] = None):
-    """Deterministic policy on its own env; episode i starts from reset(seed=seed + i), so every
-    evaluation of a run sees the same start states. Returns the list of episode returns."""
-    env = make_env(env_id, seed, render_mode="rgb_array" if capture_video_dir else None)
-    if capture_video_dir:
-        env = gym.wrappers.RecordVideo(env, capture_video_dir, episode_trigger=lambda ep: ep == 0, disable_logger=True)
-    returns = []
-    for i in range(num_episodes):
-        obs, _ = env.reset(seed=seed + i)
-        done, ep_return = False, 0.0
-        while not done:
-            obs, reward, terminated, truncated, _ = env.step(act(obs, deterministic=True))
-            ep_return += float(reward)
-            done = terminated or truncated
-        returns.append(ep_return)
-    env.close()
-    return returns
-# --- end shared: evaluation ---
-
-
-# --- shared: results ---
-def cpu_name() -> str:
-    try:
-        with open("/proc/cpuinfo") as f:
-            return next(line.split(":", 1)[1].strip() for line in f if line.startswith("model name"))
-    except (OSError, StopIteration):
-        return platform.processor() or platform.machine()
-
-
-def machine_info(device) -> dict:
-    git = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
-                         cwd=os.path.dirname(os.path.abspath(__file__)))
-    info = {"host": platform.node(), "cpu": cpu_name(),
-            "cpu_count": os.cpu_count(), "torch": torch.__version__, "threads": torch.get_num_threads(),
-            "device": str(device), "python": platform.python_version(), "gymnasium": gym.__version__,
-            "git_commit": git.stdout.strip() if git.returncode == 0 else None}
-    if torch.device(device).type == "cuda":
-        info["gpu"] = torch.cuda.get_device_name(device)
-    return info
-
-
-def write_results(path: str, args, evals: list, expert_return: Optional[float], wall_time: float,
-                  sps: float, machine: dict, finished: bool) -> None:
-    """results.json: the run's config, its evaluation curve and where it ran (format in README)."""
-    final = evals[-1] if evals else None
-    results = {
-        "algo": args.exp_name, "env_id": args.env_id, "seed": args.seed, "finished": finished,
-        "evals": evals,  # [{"step", "mean", "std", "normalized"}]
-        "final_return": final["mean"] if final else None,
-        "final_normalized_return": final["normalized"] if final else None,
-        "expert_return": expert_return, "wall_time_s": wall_time, "sps": sps,
-        "machine": machine, "config": asdict(args),
-    }
-    with open(path + ".tmp", "w") as f:
-        json.dump(results, f, indent=1)
-    os.replace(path + ".tmp", path)
-def format_time(seconds: float) -> str:
-    seconds = int(seconds)
-    return f"{seconds // 3600}h{seconds % 3600 // 60:02d}m" if seconds >= 3600 else f"{seconds // 60}m{seconds % 60:02d}s"
-# --- end shared: results ---
-
-
-# --- shared: checkpoint ---
-class StopRequest:
-    """Turns Ctrl-C / SIGTERM into a flag that the loop checks, so the run can save and exit cleanly."""
-
-    def __init__(self):
-        self.signum = 0
-        signal.signal(signal.SIGINT, self._handler)
-        signal.signal(signal.SIGTERM, self._handler)
-
-    def _handler(self, signum, frame):
-        if self.signum:  # a second Ctrl-C stops at once
-            raise KeyboardInterrupt
-        self.signum = signum
-        print(f"\nsignal {signum}: saving a checkpoint at the end of this step, then exiting", flush=True)
-
-
-def save_checkpoint(path: str, state: dict) -> None:
-    torch.save(state, path + ".tmp")
-    os.replace(path + ".tmp", path)  # atomic: an interrupted save never leaves a broken checkpoint
-
-
-def load_checkpoint(path: str) -> dict:
-    if os.path.isdir(path):
-        path = os.path.join(path, "checkpoint.pt")
-    if not os.path.isfile(path):
-        raise SystemExit(f"error: no checkpoint at '{path}'; pass --resume runs/<run> of a run that saved one")
-    try:
-        return torch.load(path, map_location="cpu", weights_only=False)
-    except Exception as e:
-        raise SystemExit(f"error: cannot read checkpoint '{path}' ({type(e).__name__}: {e})") from None
-
-
-def rng_state() -> dict:
-    return {"python": random.getstate(), "numpy": np.random.get_state(), "torch": torch.get_rng_state(),
-            "cuda": torch.cuda.get_rng_state_all() if torch.cuda.is_available() else None}
-
-
-def set_rng_state(state: dict) -> None:
-    random.setstate(state["python"])
-    np.random.set_state(state["numpy"])
-    torch.set_rng_state(state["torch"])
-    if state["cuda"] is not None and torch.cuda.is_available():
-        torch.cuda.set_rng_state_all(state["cuda"])
-
-
-def resume_args(cli_args, saved_config: dict):
-    """The saved run's config, with the fields a user may change on resume taken from the command line
-    when they differ from their defaults."""
-    args = type(cli_args)(**{f.name: saved_config[f.name] for f in fields(cli_args) if f.name in saved_config})
-    defaults = type(cli_args)()
-    for name in ("total_timesteps", "cuda", "compile", "cudagraphs", "threads"):
-        if hasattr(cli_args, name) and getattr(cli_args, name) != getattr(defaults, name):
-            setattr(args, name, getattr(cli_args, name))
-    args.resume = cli_args.resume
-    return args
-# --- end shared: checkpoint ---
-
-
-# --- shared: actor io ---
-def save_actor(path: str, actor: Actor, env_id: str, obs_dim: int, act_dim: int, hidden_dim: int, **extra) -> None:
-    """The actor alone, with what is needed to rebuild it: any script's actor.pt can record demos."""
-    torch.save({"actor": actor.state_dict(), "env_id": env_id, "obs_dim": obs_dim, "act_dim": act_dim,
-                "hidden_dim": hidden_dim, **extra}, path)
-
-
-def load_actor(path: str, env: gym.Env, device="cpu"):
-    """Rebuild a saved actor for `env`, with clear errors for a missing file or another env's actor."""
-    if not os.path.isfile(path):
-        raise SystemExit(f"error: no actor checkpoint at '{path}'")
-    try:
-        ckpt = torch.load(path, map_location="cpu", weights_only=True)
-    except Exception as e:
-        raise SystemExit(f"error: cannot read actor checkpoint '{path}' ({type(e).__name__}: {e})") from None
-    obs_dim, act_dim = env.observation_space.shape[0], env.action_space.shape[0]
-    if (ckpt.get("obs_dim"), ckpt.get("act_dim")) != (obs_dim, act_dim):
-        raise SystemExit(f"error: actor '{path}' was saved for {ckpt.get('env_id')} (obs {ckpt.get('obs_dim')}, "
-                         f"act {ckpt.get('act_dim')}), not for {env.spec.id} (obs {obs_dim}, act {act_dim})")
-    actor = Actor(obs_dim, act_dim, env.action_space.low, env.action_space.high, ckpt["hidden_dim"])
-    actor.load_state_dict(ckpt["actor"])
-    return actor.to(device).eval(), ckpt
-# --- end shared: actor io ---
 
 
 # --- shared: demonstrations ---
@@ -608,98 +581,203 @@ def load_demonstrations(path: str, env: gym.Env, num_trajs: Optional[int] = None
 # --- end shared: demonstrations ---
 
 
-def record_demonstrations(act, env_id: str, num_episodes: int, seed: int, full_episodes_only: bool = False,
-                          max_tries: int = 200) -> tuple[dict, list]:
-    """Run the deterministic policy on resets seeded seed + i, i = 0, 1, ..., until `num_episodes` are kept.
-
-    With `full_episodes_only`, an episode that terminates (falls) before the time limit is discarded;
-    Returns the demonstrations and every episode run as (reset seed, length, return, kept)."""
-    env = make_env(env_id, seed)
-    keys = ("observations", "actions", "next_observations", "rewards", "terminations", "truncations")
-    buf = {k: [] for k in keys}
-    starts, lengths, returns, tried = [], [], [], []
-    i = 0
-    while len(lengths) < num_episodes:
-        if i >= max_tries:
-            raise SystemExit(f"error: only {len(lengths)} of {i} episodes reached the time limit; "
-                             f"train the expert longer or raise --max-demo-tries")
+# --- shared: evaluation ---
+def evaluate(act, env_id: str, num_episodes: int, seed: int, capture_video_dir: Optional[str] = None):
+    """Deterministic policy on its own env; episode i starts from reset(seed=seed + i), so every
+    evaluation of a run sees the same start states. Returns the list of episode returns."""
+    env = make_env(env_id, seed, render_mode="rgb_array" if capture_video_dir else None)
+    if capture_video_dir:
+        env = gym.wrappers.RecordVideo(env, capture_video_dir, episode_trigger=lambda ep: ep == 0, disable_logger=True)
+    returns = []
+    for i in range(num_episodes):
         obs, _ = env.reset(seed=seed + i)
-        episode = {k: [] for k in keys}
         done, ep_return = False, 0.0
         while not done:
-            action = act(obs, deterministic=True)
-            next_obs, reward, terminated, truncated, _ = env.step(action)
-            for k, v in zip(keys, (obs, action, next_obs, reward, terminated, truncated)):
-                episode[k].append(v)
+            obs, reward, terminated, truncated, _ = env.step(act(obs, deterministic=True))
             ep_return += float(reward)
-            obs, done = next_obs, terminated or truncated
-        keep = not (full_episodes_only and terminated)
-        tried.append((seed + i, len(episode["rewards"]), ep_return, keep))
-        i += 1
-        if keep:
-            starts.append(len(buf["rewards"]))
-            for k in keys:
-                buf[k].extend(episode[k])
-            lengths.append(len(episode["rewards"]))
-            returns.append(ep_return)
+            done = terminated or truncated
+        returns.append(ep_return)
     env.close()
-    demos = {k: np.asarray(v, dtype=np.float32) for k, v in buf.items() if k not in ("terminations", "truncations")}
-    demos["terminations"] = np.asarray(buf["terminations"], dtype=bool)
-    demos["truncations"] = np.asarray(buf["truncations"], dtype=bool)
-    demos["episode_starts"] = np.asarray(starts, dtype=np.int64)
-    demos["episode_lengths"] = np.asarray(lengths, dtype=np.int64)
-    demos["episode_returns"] = np.asarray(returns, dtype=np.float64)
-    return demos, tried
+    return returns
+# --- end shared: evaluation ---
 
 
-def save_demonstrations(path: str, demos: dict, metadata: dict) -> None:
-    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
-    np.savez_compressed(path, **demos, metadata=np.array(json.dumps(metadata)))
+# --- shared: run ---
+class Run:
+    """Everything around the method: the run directory (config.json, TensorBoard, results.json), evaluation
+    every --eval-freq steps, a progress line every 30 s, a checkpoint every --checkpoint-freq steps and on
+    Ctrl-C / SIGTERM, and --resume. `stateful` names the objects with state_dict() / load_state_dict() (the
+    learners with their optimisers, the replay buffer; a plain dict is saved as it is): a checkpoint is
+    their states, the RNG states and the run's progress."""
+
+    def __init__(self, args, checkpoint: Optional[dict], stateful: dict, expert_return: Optional[float], device):
+        self.args, self.stateful, self.expert_return = args, stateful, expert_return
+        default_name = f"{args.env_id}__{args.exp_name}__{args.seed}__{int(time.time())}"
+        self.name = checkpoint["run_name"] if checkpoint else (args.run_name or default_name)
+        self.dir = os.path.join("runs", self.name)
+        os.makedirs(self.dir, exist_ok=True)
+        with open(os.path.join(self.dir, "config.json"), "w") as f:
+            json.dump(asdict(args), f, indent=1)
+        if args.track:
+            import wandb
+
+            wandb.init(project=args.wandb_project_name, entity=args.wandb_entity, sync_tensorboard=True,
+                       config=vars(args), name=self.name, id=self.name, resume="allow", save_code=True)
+        from torch.utils.tensorboard import SummaryWriter
+
+        self.writer = SummaryWriter(self.dir)
+        table = "\n".join(f"|{k}|{v}|" for k, v in vars(args).items())
+        self.writer.add_text("hyperparameters", f"|param|value|\n|-|-|\n{table}")
+        self.machine = {"host": platform.node(), "torch": torch.__version__, "threads": torch.get_num_threads(),
+                        "device": str(device)}
+        self.evals, self.start_step, self.wall_offset = [], 0, 0.0
+        if checkpoint:
+            for name, obj in stateful.items():
+                if isinstance(obj, dict):
+                    obj.update({k: v.to(device) if torch.is_tensor(v) else v for k, v in checkpoint[name].items()})
+                else:
+                    obj.load_state_dict(checkpoint[name])
+            self.evals, self.start_step, self.wall_offset = checkpoint["evals"], checkpoint["step"], checkpoint["wall_time"]
+            set_rng_state(checkpoint["rng"])
+            print(f"resumed {self.dir} at step {self.start_step}")
+        self.stop_signal, self.sps, self.learn_steps, self.learn_time, self.last_print = 0, 0.0, 0, 0.0, 0.0
+        signal.signal(signal.SIGINT, self.on_signal)
+        signal.signal(signal.SIGTERM, self.on_signal)
+        self.start_time, self.tick = time.time(), time.perf_counter()
+
+    def on_signal(self, signum, frame):
+        if self.stop_signal:  # a second Ctrl-C stops at once
+            raise KeyboardInterrupt
+        self.stop_signal = signum
+        print(f"\nsignal {signum}: saving a checkpoint at the end of this step, then exiting", flush=True)
+
+    def log(self, metrics: dict, step: int) -> None:
+        for name, value in metrics.items():
+            self.writer.add_scalar(name, float(value), step)
+
+    def end_step(self, step: int, act, status: str = "") -> None:
+        """After env step `step` (counted from 1): speed, evaluation, progress line, checkpoint."""
+        args = self.args
+        if step > getattr(args, "learning_starts", 0):  # SPS counts the steps that learn, evaluation excluded
+            self.learn_steps, self.learn_time = self.learn_steps + 1, self.learn_time + time.perf_counter() - self.tick
+            self.sps = self.learn_steps / self.learn_time
+            if step % 1000 == 1:
+                self.log({"charts/SPS": self.sps}, step - 1)
+        if step % args.eval_freq == 0 or step == args.total_timesteps:
+            self.evaluate(step, act)
+        if time.time() - self.last_print > 30 or step == args.total_timesteps:
+            self.last_print = time.time()
+            left = format_time((args.total_timesteps - step) / self.sps) if self.sps > 0 else "?"
+            print(f"step {step}/{args.total_timesteps} | {self.sps:.0f} SPS | eval return {self.last_eval()}{status} | "
+                  f"left {left}", flush=True)
+        checkpoint_freq = getattr(args, "checkpoint_freq", 0)
+        if self.stop_signal or (checkpoint_freq and step % checkpoint_freq == 0 and step < args.total_timesteps):
+            self.save_checkpoint(step)
+            if self.stop_signal:
+                print(f"checkpoint saved at step {step}; continue with: python {sys.argv[0]} --resume {self.dir}")
+                self.writer.close()
+                sys.exit(128 + self.stop_signal)
+        self.tick = time.perf_counter()
+
+    def evaluate(self, step: int, act) -> None:
+        """--eval-episodes of the deterministic policy, logged and written to results.json."""
+        returns = evaluate(act, self.args.env_id, self.args.eval_episodes, seed=self.args.seed + 100_000)
+        mean, std = float(np.mean(returns)), float(np.std(returns))
+        normalized = mean / self.expert_return if self.expert_return else None
+        self.evals.append({"step": step, "mean": mean, "std": std, "normalized": normalized})
+        self.log({"eval/return": mean} | ({"eval/normalized_return": normalized} if normalized is not None else {}), step)
+        self.write_results(finished=False)
+
+    def last_eval(self) -> str:
+        if not self.evals:
+            return "-"
+        e = self.evals[-1]
+        versus = f" = {e['normalized']:.2f} x expert {self.expert_return:.1f}" if e["normalized"] is not None else ""
+        return f"{e['mean']:.1f} +- {e['std']:.1f}{versus} (step {e['step']})"
+
+    def save_checkpoint(self, step: int) -> None:
+        state = {name: dict(obj) if isinstance(obj, dict) else obj.state_dict() for name, obj in self.stateful.items()}
+        state.update(step=step, evals=self.evals, wall_time=self.wall_time(), rng=rng_state(), config=asdict(self.args),
+                     run_name=self.name)
+        path = os.path.join(self.dir, "checkpoint.pt")
+        torch.save(state, path + ".tmp")
+        os.replace(path + ".tmp", path)  # atomic: an interrupted save never leaves a broken checkpoint
+
+    def wall_time(self) -> float:
+        return self.wall_offset + time.time() - self.start_time
+
+    def write_results(self, finished: bool) -> None:
+        """results.json: the run's config, its evaluation curve and where it ran (format in README)."""
+        final = self.evals[-1] if self.evals else {}
+        results = {
+            "algo": self.args.exp_name, "env_id": self.args.env_id, "seed": self.args.seed, "finished": finished,
+            "evals": self.evals, "final_return": final.get("mean"), "final_normalized_return": final.get("normalized"),
+            "expert_return": self.expert_return, "wall_time_s": self.wall_time(), "sps": self.sps,
+            "machine": self.machine, "config": asdict(self.args),
+        }
+        path = os.path.join(self.dir, "results.json")
+        with open(path + ".tmp", "w") as f:
+            json.dump(results, f, indent=1)
+        os.replace(path + ".tmp", path)
+
+    def finish(self, act, models: dict, status: str = "") -> None:
+        """The last checkpoint and results.json, the models (unless --no-save-model), a video (--capture-video)."""
+        args = self.args
+        if hasattr(args, "checkpoint_freq"):  # scripts without checkpoints (bc.py) have no such flag
+            self.save_checkpoint(args.total_timesteps)
+        self.write_results(finished=True)
+        if args.save_model:
+            for filename, content in models.items():
+                torch.save(content, os.path.join(self.dir, filename))
+            print(f"saved {', '.join(os.path.join(self.dir, filename) for filename in models)}")
+        if args.capture_video:
+            evaluate(act, args.env_id, 1, seed=args.seed + 100_000, capture_video_dir=os.path.join(self.dir, "videos"))
+        self.writer.close()
+        if self.evals:
+            print(f"done: {args.total_timesteps} steps in {format_time(self.wall_time())}, final eval return "
+                  f"{self.last_eval()}{status}")
 
 
-def record_and_save(act, actor: Actor, args, training_steps: int, source: str, obs_dim: int, act_dim: int):
-    import mujoco
+def format_time(seconds: float) -> str:
+    seconds = int(seconds)
+    return f"{seconds // 3600}h{seconds % 3600 // 60:02d}m" if seconds >= 3600 else f"{seconds // 60}m{seconds % 60:02d}s"
 
-    demo_path = args.demo_path or os.path.join("experts", f"{args.env_id}.npz")
-    demos, tried = record_demonstrations(act, args.env_id, args.num_demos, args.demo_seed, args.full_episodes_only,
-                                         args.max_demo_tries)
-    returns = demos["episode_returns"]
-    all_returns = np.array([t[2] for t in tried])
-    if args.full_episodes_only:
-        selection = (f"the first {args.num_demos} episodes of the deterministic policy (tanh of the mean) that "
-                     f"reached the time limit, trying resets seeded {args.demo_seed}, {args.demo_seed} + 1, ...: "
-                     f"{len(tried) - args.num_demos} of {len(tried)} tried fell first and were discarded")
-    else:
-        selection = (f"the first {args.num_demos} episodes of the deterministic policy (tanh of the mean), "
-                     f"episode i reset with seed {args.demo_seed} + i; no episode filtered out")
-    metadata = {
-        "env_id": args.env_id, "gymnasium_version": gym.__version__, "mujoco_version": mujoco.__version__,
-        "torch_version": torch.__version__, "expert_training_steps": training_steps, "expert_source": source,
-        "training_seed": args.seed, "demo_seed": args.demo_seed, "num_episodes": args.num_demos,
-        "selection": selection,
-        "episodes_tried": [{"reset_seed": a, "length": b, "return": c, "kept": d} for a, b, c, d in tried],
-        "tried_return_mean": float(all_returns.mean()), "tried_return_std": float(all_returns.std()),
-        "return_mean": float(returns.mean()), "return_std": float(returns.std()),
-        "return_min": float(returns.min()), "return_max": float(returns.max()),
-        "actions": "env units (the env's action box), as sent to env.step",
-        "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
-    }
-    save_demonstrations(demo_path, demos, metadata)
-    actor_path = os.path.splitext(demo_path)[0] + "-actor.pt"
-    if os.path.abspath(actor_path) != os.path.abspath(source):
-        save_actor(actor_path, actor, args.env_id, obs_dim, act_dim, args.hidden_dim, training_steps=training_steps)
-    check = load_demonstrations(demo_path, make_env(args.env_id, args.seed))  # round trip
-    print(f"recorded {len(check['episode_lengths'])} episodes ({len(tried)} tried), {len(check['rewards'])} "
-          f"transitions, return {returns.mean():.1f} +- {returns.std():.1f} (min {returns.min():.1f}) -> "
-          f"{demo_path}, {actor_path}")
+
+def resume(args):
+    """--resume: the saved checkpoint, and the saved run's config with the fields a user may change on
+    resume (total_timesteps, cuda, threads) taken from the command line where they differ from their defaults."""
+    path = os.path.join(args.resume, "checkpoint.pt") if os.path.isdir(args.resume) else args.resume
+    if not os.path.isfile(path):
+        raise SystemExit(f"error: no checkpoint at '{path}'; pass --resume runs/<run> of a run that saved one")
+    try:
+        checkpoint = torch.load(path, map_location="cpu", weights_only=False)
+    except Exception as e:
+        raise SystemExit(f"error: cannot read checkpoint '{path}' ({type(e).__name__}: {e})") from None
+    saved = type(args)(**{f.name: checkpoint["config"][f.name] for f in fields(args) if f.name in checkpoint["config"]})
+    for name in ("total_timesteps", "cuda", "threads", "compile", "cudagraphs"):
+        if hasattr(args, name) and getattr(args, name) != getattr(type(args)(), name):
+            setattr(saved, name, getattr(args, name))
+    saved.resume = args.resume
+    return saved, checkpoint
+
+
+def rng_state() -> dict:
+    return {"python": random.getstate(), "numpy": np.random.get_state(), "torch": torch.get_rng_state(),
+            "cuda": torch.cuda.get_rng_state_all() if torch.cuda.is_available() else None}
+
+
+def set_rng_state(state: dict) -> None:
+    random.setstate(state["python"])
+    np.random.set_state(state["numpy"])
+    torch.set_rng_state(state["torch"])
+    if state["cuda"] is not None and torch.cuda.is_available():
+        torch.cuda.set_rng_state_all(state["cuda"])
+# --- end shared: run ---
 
 
 if __name__ == "__main__":
     args = tyro.cli(Args)
-    checkpoint = None
-    if args.resume:
-        checkpoint = load_checkpoint(args.resume)
-        args = resume_args(args, checkpoint["config"])
+    args, checkpoint = resume(args) if args.resume else (args, None)
     if args.cudagraphs and not args.cuda:
         raise SystemExit("error: --cudagraphs needs --cuda")
     torch.set_num_threads(args.threads)
@@ -713,65 +791,30 @@ if __name__ == "__main__":
 
     if args.record_from:  # demonstrations only, from a saved actor
         actor, ckpt = load_actor(args.record_from, env, device)
-        act = make_act_fn(actor, obs_dim, device, cudagraphs=False)
-        record_and_save(act, actor, args, ckpt.get("training_steps", -1), args.record_from, obs_dim, act_dim)
+        record_and_save(actor.act, actor, args, ckpt.get("training_steps", -1), args.record_from)
         sys.exit(0)
 
-    run_name = checkpoint["run_name"] if checkpoint else (
-        args.run_name or f"{args.env_id}__{args.exp_name}__{args.seed}__{int(time.time())}")
-    run_dir = os.path.join("runs", run_name)
-    os.makedirs(run_dir, exist_ok=True)
-    with open(os.path.join(run_dir, "config.json"), "w") as f:
-        json.dump(asdict(args), f, indent=1)
-    if args.track:
-        import wandb
-
-        wandb.init(project=args.wandb_project_name, entity=args.wandb_entity, sync_tensorboard=True,
-                   config=vars(args), name=run_name, id=run_name, resume="allow", save_code=True)
-    from torch.utils.tensorboard import SummaryWriter
-
-    writer = SummaryWriter(run_dir)
-    writer.add_text("hyperparameters", "|param|value|\n|-|-|\n" + "\n".join(f"|{k}|{v}|" for k, v in vars(args).items()))
-
-    # ALGO LOGIC: initialise the agent and its replay buffer
-    agent = SAC(obs_dim, act_dim, env.action_space.low, env.action_space.high, args, device, capturable=args.cudagraphs)
+    # ALGO LOGIC: the agent and its replay buffer
+    agent = SAC(obs_dim, act_dim, env.action_space.low, env.action_space.high, args, device)
+    if args.cudagraphs:  # the optimiser steps are captured in the update's CUDA graph: capturable optimisers
+        adam = dict(capturable=True, fused=True)
+        agent.q_optimizer = torch.optim.Adam(agent.qf.parameters(), lr=args.q_lr, **adam)
+        agent.actor_optimizer = torch.optim.Adam(agent.actor.parameters(), lr=args.policy_lr, **adam)
+        if args.autotune:
+            agent.alpha_optimizer = torch.optim.Adam([agent.log_alpha], lr=args.policy_lr, **adam)
     rb = ReplayBuffer(obs_dim, act_dim, args.buffer_size, device)
-    evals, start_step, wall_offset, refill_until = [], 0, 0.0, 0
-    if checkpoint:
-        agent.load_state_dict(checkpoint["agent"])
-        for name in ("q_optimizer", "actor_optimizer", "alpha_optimizer"):
-            if getattr(agent, name) is not None:
-                getattr(agent, name).load_state_dict(checkpoint[name])
-        evals, start_step, wall_offset = checkpoint["evals"], checkpoint["global_step"], checkpoint["wall_time"]
-        if "replay_buffer" in checkpoint:
-            rb.load_state_dict(checkpoint["replay_buffer"])
-        else:  # a checkpoint saved without its buffer (to move it between machines): refill before updating
-            refill_until = start_step + args.learning_starts
-            print(f"warning: the checkpoint holds no replay buffer; the current policy refills it for "
-                  f"{args.learning_starts} steps before updates resume")
-        set_rng_state(checkpoint["rng"])
-        print(f"resumed {run_dir} at step {start_step} ({rb.size} transitions in the replay buffer)")
-    act = make_act_fn(agent.actor, obs_dim, device, args.cudagraphs)
+    refill_until = 0
+    if checkpoint and "replay_buffer" not in checkpoint:  # saved without its buffer: refill it before updating
+        checkpoint["replay_buffer"], refill_until = rb.state_dict(), checkpoint["step"] + args.learning_starts
+        print(f"warning: the checkpoint holds no replay buffer; the current policy refills it for "
+              f"{args.learning_starts} steps before updates resume")
+    run = Run(args, checkpoint, {"agent": agent, "replay_buffer": rb}, None, device)
+    act = graphed_act(agent.actor, obs_dim, device) if args.cudagraphs else agent.actor.act
     update_step = None  # built when learning starts (CUDA graphs capture real batches)
-    machine = machine_info(device)
-
-    def checkpoint_state(step):
-        state = {"agent": agent.state_dict(), "replay_buffer": rb.state_dict(), "global_step": step,
-                 "evals": evals, "wall_time": wall_offset + time.time() - start_time, "rng": rng_state(),
-                 "config": asdict(args), "run_name": run_name}
-        for name in ("q_optimizer", "actor_optimizer", "alpha_optimizer"):
-            if getattr(agent, name) is not None:
-                state[name] = getattr(agent, name).state_dict()
-        return state
 
     # TRY NOT TO MODIFY: start the game
-    stop = StopRequest()
-    start_time = time.time()
-    learn_time, learn_steps, sps, last_print = 0.0, 0, 0.0, 0.0  # SPS counts steps after learning starts, evaluation excluded
-    obs, _ = env.reset(seed=args.seed + start_step)
-    global_step = start_step
-    for global_step in range(start_step, args.total_timesteps):
-        step_start = time.perf_counter()
+    obs, _ = env.reset(seed=args.seed + run.start_step)
+    for global_step in range(run.start_step, args.total_timesteps):
         if global_step < args.learning_starts:
             action = env.action_space.sample()
         else:
@@ -780,60 +823,27 @@ if __name__ == "__main__":
         rb.add(obs, action, next_obs, reward, terminated)  # next_obs is the true one, also at truncation
         obs = next_obs
         if terminated or truncated:
-            writer.add_scalar("charts/episodic_return", info["episode"]["r"], global_step)
-            writer.add_scalar("charts/episodic_length", info["episode"]["l"], global_step)
+            run.log({"charts/episodic_return": info["episode"]["r"], "charts/episodic_length": info["episode"]["l"]}, global_step)
             obs, _ = env.reset()
 
         # ALGO LOGIC: training
         if global_step >= max(args.learning_starts, refill_until):
-            if update_step is None:
-                update_step = make_update_fn(agent, rb, args)
+            update_step = update_step or make_update_fn(agent, rb, args)
             metrics = update_step()
-            learn_time, learn_steps = learn_time + time.perf_counter() - step_start, learn_steps + 1
-            sps = learn_steps / learn_time
             if global_step % 1000 == 0:
-                for name, value in zip(METRIC_NAMES, metrics.tolist()):
-                    writer.add_scalar(f"losses/{name}", value, global_step)
-                writer.add_scalar("charts/SPS", sps, global_step)
+                run.log(metrics, global_step)
 
         step = global_step + 1
-        if step % args.eval_freq == 0 or step == args.total_timesteps:
-            returns = evaluate(act, args.env_id, args.eval_episodes, seed=args.seed + 100_000)
-            evals.append({"step": step, "mean": float(np.mean(returns)), "std": float(np.std(returns)), "normalized": None})
-            writer.add_scalar("eval/return", evals[-1]["mean"], step)
-            writer.add_scalar("eval/return_std", evals[-1]["std"], step)
-            write_results(os.path.join(run_dir, "results.json"), args, evals, None,
-                          wall_offset + time.time() - start_time, sps, machine, finished=False)
-            if evals[-1]["mean"] >= max(e["mean"] for e in evals):  # keep the best actor: experts are picked by it
-                save_actor(os.path.join(run_dir, "actor_best.pt"), agent.actor, args.env_id, obs_dim, act_dim,
-                           args.hidden_dim, training_steps=step, eval_return=evals[-1]["mean"])
-        if time.time() - last_print > 30 or step == args.total_timesteps:
-            last_print = time.time()
-            eta = (args.total_timesteps - step) / sps if sps > 0 else float("nan")
-            last = f"{evals[-1]['mean']:.1f} (step {evals[-1]['step']})" if evals else "-"
-            print(f"step {step}/{args.total_timesteps} | {sps:.0f} SPS | eval return {last} | "
-                  f"left {format_time(eta) if sps > 0 else '?'}", flush=True)
-        if stop.signum or (args.checkpoint_freq and step % args.checkpoint_freq == 0 and step < args.total_timesteps):
-            save_checkpoint(os.path.join(run_dir, "checkpoint.pt"), checkpoint_state(step))
-            save_actor(os.path.join(run_dir, "actor.pt"), agent.actor, args.env_id, obs_dim, act_dim,
-                       args.hidden_dim, training_steps=step)
-            if stop.signum:
-                print(f"checkpoint saved at step {step}; continue with: python {sys.argv[0]} --resume {run_dir}")
-                writer.close()
-                sys.exit(128 + stop.signum)
+        if run.stop_signal or (args.checkpoint_freq and step % args.checkpoint_freq == 0 and step < args.total_timesteps):
+            torch.save(actor_file(agent.actor, args.env_id, training_steps=step), os.path.join(run.dir, "actor.pt"))
+        run.end_step(step, act)
+        if run.evals and run.evals[-1]["step"] == step:  # just evaluated: log the spread, keep the best actor
+            run.log({"eval/return_std": run.evals[-1]["std"]}, step)
+            if run.evals[-1]["mean"] >= max(e["mean"] for e in run.evals):
+                torch.save(actor_file(agent.actor, args.env_id, training_steps=step, eval_return=run.evals[-1]["mean"]),
+                           os.path.join(run.dir, "actor_best.pt"))
 
-    wall_time = wall_offset + time.time() - start_time
-    save_checkpoint(os.path.join(run_dir, "checkpoint.pt"), checkpoint_state(args.total_timesteps))  # to extend the run
-    write_results(os.path.join(run_dir, "results.json"), args, evals, None, wall_time, sps, machine, finished=True)
-    if args.save_model:
-        save_actor(os.path.join(run_dir, "actor.pt"), agent.actor, args.env_id, obs_dim, act_dim, args.hidden_dim,
-                   training_steps=args.total_timesteps)
-        print(f"saved {run_dir}/actor.pt")
-    if args.capture_video:
-        evaluate(act, args.env_id, 1, seed=args.seed + 100_000, capture_video_dir=os.path.join(run_dir, "videos"))
+    run.finish(act, {"actor.pt": actor_file(agent.actor, args.env_id, training_steps=args.total_timesteps)})
     if args.record_demos:
-        record_and_save(act, agent.actor, args, args.total_timesteps, os.path.join(run_dir, "actor.pt"), obs_dim, act_dim)
+        record_and_save(act, agent.actor, args, args.total_timesteps, os.path.join(run.dir, "actor.pt"))
     env.close()
-    writer.close()
-    print(f"done: {args.total_timesteps} steps in {format_time(wall_time)}, final eval return "
-          f"{evals[-1]['mean']:.1f} +- {evals[-1]['std']:.1f}" if evals else "done")

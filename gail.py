@@ -34,11 +34,10 @@ import os
 import platform
 import random
 import signal
-import subprocess
 import sys
 import time
 from dataclasses import asdict, dataclass, fields
-from typing import Literal, Optional
+from typing import Literal, NamedTuple, Optional
 
 import gymnasium as gym
 import numpy as np
@@ -67,7 +66,7 @@ class Args:
     capture_video: bool = False
     """record a video of one deterministic episode at the end (needs `pip install moviepy`)"""
     save_model: bool = True
-    """save the actor (actor.pt) and the discriminator (reward.pt) in the run directory"""
+    """save the actor (actor.pt) and the learned reward (reward.pt) in the run directory"""
     run_name: Optional[str] = None
     """run directory under runs/ (default: {env_id}__{exp_name}__{seed}__{unix_time})"""
     resume: Optional[str] = None
@@ -88,9 +87,9 @@ class Args:
     gamma: float = 0.99
     """the discount factor"""
     tau: float = 0.01
-    """target smoothing coefficient (the paper's GAIL setting)"""
+    """the target smoothing coefficient (0.01: the paper's GAIL setting)"""
     batch_size: int = 256
-    """the SAC batch size"""
+    """the batch size of a SAC update"""
     learning_starts: int = 5_000
     """env steps of uniform random actions before any update"""
     policy_lr: float = 3e-4
@@ -120,9 +119,9 @@ class Args:
     disc_lr: float = 3e-5
     """the discriminator's learning rate"""
     disc_batch_size: int = 32
-    """expert pairs and learner pairs per discriminator update (each)"""
+    """expert pairs and agent pairs per discriminator update (each)"""
     disc_buffer_size: int = 16_384
-    """the discriminator learns from this many most recent learner transitions"""
+    """the discriminator learns from this many most recent agent transitions"""
     disc_gp: float = 1.0
     """weight of the one-centred gradient penalty"""
 
@@ -135,6 +134,73 @@ class Args:
     """std of Gaussian noise added to the expert's actions (noise-robustness experiment)"""
     expert_state_noise: float = 0.0
     """std of Gaussian noise added to the expert's states (noise-robustness experiment)"""
+
+
+# ALGO LOGIC: the discriminator, then GAIL's reward and update (blocks rile.py and drail_disc.py share)
+# --- shared: discriminator ---
+class Discriminator(nn.Module):
+    """D(x) = sigmoid(logit(x)), expert = 1, trained with BCE and a one-centred gradient penalty on
+    random interpolates of expert and policy inputs."""
+
+    def __init__(self, in_dim: int, hidden_dim: int, lr: float, gp_weight: float):
+        super().__init__()
+        self.net = nn.Sequential(
+            nn.Linear(in_dim, hidden_dim), nn.Tanh(), nn.Linear(hidden_dim, hidden_dim), nn.Tanh(), nn.Linear(hidden_dim, 1)
+        )
+        self.gp_weight = gp_weight
+        self.optimizer = torch.optim.Adam(self.parameters(), lr=lr)
+
+    def forward(self, x):
+        return self.net(x).squeeze(-1)
+
+    def loss(self, expert_x, policy_x):
+        """BCE(D(expert), 1) + BCE(D(policy), 0) + gp_weight * E[(||grad_x logit(x_hat)|| - 1)^2]."""
+        expert_logits, policy_logits = self(expert_x), self(policy_x)
+        bce = F.binary_cross_entropy_with_logits(expert_logits, torch.ones_like(expert_logits))
+        bce = bce + F.binary_cross_entropy_with_logits(policy_logits, torch.zeros_like(policy_logits))
+        eps = torch.rand(len(expert_x), 1, device=expert_x.device)
+        x_hat = (eps * expert_x + (1 - eps) * policy_x).requires_grad_(True)
+        grad = torch.autograd.grad(self(x_hat).sum(), x_hat, create_graph=True)[0]
+        gp = (grad.norm(2, dim=1) - 1).pow(2).mean()
+        return bce + self.gp_weight * gp, bce, gp, torch.sigmoid(expert_logits).mean(), torch.sigmoid(policy_logits).mean()
+
+    def update(self, expert_x, policy_x) -> dict:
+        loss, bce, gp, expert_prob, policy_prob = self.loss(expert_x, policy_x)
+        self.optimizer.zero_grad(set_to_none=False)
+        loss.backward()
+        self.optimizer.step()
+        return {"losses/disc_loss": bce, "losses/disc_gp": gp, "disc/expert_prob": expert_prob, "disc/policy_prob": policy_prob}
+
+    @torch.no_grad()
+    def prob(self, x):
+        return torch.sigmoid(self(x))
+# --- end shared: discriminator ---
+
+
+# --- shared: gail ---
+def gail_reward(logits, form: str):
+    """The SAC reward from the discriminator's logit l (D = sigmoid(l)), computed stably."""
+    if form == "softplus":
+        return F.softplus(logits)  # -log(1 - D)
+    if form == "logit":
+        return logits  # log D - log(1 - D)
+    if form == "log-d":
+        return -F.softplus(-logits)  # log D
+    raise ValueError(f"unknown reward form '{form}'; choose softplus, logit or log-d")
+
+
+def gail_update(agent: "SAC", disc: nn.Module, rb: "ReplayBuffer", expert: dict, args) -> dict:
+    """One SAC update on rewards from the current discriminator, then one discriminator update."""
+    batch = rb.sample(args.batch_size)  # its env rewards are never used
+    with torch.no_grad():
+        rewards = gail_reward(disc(torch.cat([batch.obs, batch.actions], -1)), args.reward_form)
+    metrics = agent.update(batch.obs, batch.actions, batch.next_obs, rewards, batch.terminations, prefix="losses/")
+    metrics.update({"reward/learned_mean": rewards.mean(), "reward/learned_std": rewards.std()})
+    idx = torch.randint(0, len(expert["obs"]), (args.disc_batch_size,), device=expert["obs"].device)
+    policy = rb.sample(args.disc_batch_size, recent=args.disc_buffer_size)
+    expert_x = torch.cat([expert["obs"][idx], expert["actions"][idx]], -1)
+    return metrics | disc.update(expert_x, torch.cat([policy.obs, policy.actions], -1))
+# --- end shared: gail ---
 
 
 # --- shared: env ---
@@ -170,9 +236,7 @@ class Actor(nn.Module):
 
     def __init__(self, obs_dim: int, act_dim: int, action_low, action_high, hidden_dim: int = 256):
         super().__init__()
-        self.net = nn.Sequential(
-            nn.Linear(obs_dim, hidden_dim), nn.ReLU(), nn.Linear(hidden_dim, hidden_dim), nn.ReLU()
-        )
+        self.net = nn.Sequential(nn.Linear(obs_dim, hidden_dim), nn.ReLU(), nn.Linear(hidden_dim, hidden_dim), nn.ReLU())
         self.fc_mean = nn.Linear(hidden_dim, act_dim)
         self.fc_logstd = nn.Linear(hidden_dim, act_dim)
         low = torch.as_tensor(action_low, dtype=torch.float32)
@@ -211,31 +275,18 @@ class Actor(nn.Module):
     def deterministic(self, obs):
         return torch.tanh(self(obs)[0]) * self.action_scale + self.action_bias
 
+    @torch.no_grad()
+    def act(self, obs: np.ndarray, deterministic: bool = False) -> np.ndarray:
+        """The action for one env step: sampled, or the mean action (evaluation)."""
+        obs = torch.as_tensor(obs, dtype=torch.float32, device=self.action_scale.device).unsqueeze(0)
+        return (self.deterministic(obs) if deterministic else self.sample(obs)[0])[0].cpu().numpy()
 
-def make_act_fn(actor: Actor, obs_dim: int, device, cudagraphs: bool):
-    """Returns act(obs: np.ndarray, deterministic: bool) -> np.ndarray, for one env step."""
-    def act(obs, deterministic=False):
-        with torch.no_grad():
-            o = torch.as_tensor(obs, dtype=torch.float32, device=device).unsqueeze(0)
-            a = actor.deterministic(o) if deterministic else actor.sample(o)[0]
-        return a[0].cpu().numpy()
 
-    if not cudagraphs:
-        return act
-    static_obs = torch.zeros(1, obs_dim, device=device)
-    graphs, outputs = {}, {}
-    for det in (False, True):
-        act(np.zeros(obs_dim), det)  # warm-up
-        graphs[det] = torch.cuda.CUDAGraph()
-        with torch.no_grad(), torch.cuda.graph(graphs[det]):
-            outputs[det] = actor.deterministic(static_obs) if det else actor.sample(static_obs)[0]
-
-    def act_graphed(obs, deterministic=False):
-        static_obs.copy_(torch.as_tensor(obs, dtype=torch.float32).unsqueeze(0))
-        graphs[deterministic].replay()
-        return outputs[deterministic][0].cpu().numpy()
-
-    return act_graphed
+def actor_file(actor: Actor, env_id: str, **extra) -> dict:
+    """What actor.pt holds: the actor and what rebuilds it (`expert.py --record-from` reads any script's)."""
+    obs_dim, hidden_dim, act_dim = actor.net[0].in_features, actor.fc_mean.in_features, actor.fc_mean.out_features
+    return {"actor": actor.state_dict(), "env_id": env_id, "obs_dim": obs_dim, "act_dim": act_dim,
+            "hidden_dim": hidden_dim, **extra}
 # --- end shared: actor ---
 
 
@@ -247,8 +298,7 @@ class TwinQ(nn.Module):
     def __init__(self, obs_dim: int, act_dim: int, hidden_dim: int = 256, num_q: int = 2):
         super().__init__()
         sizes = [obs_dim + act_dim, hidden_dim, hidden_dim, 1]
-        self.weights = nn.ParameterList()
-        self.biases = nn.ParameterList()
+        self.weights, self.biases = nn.ParameterList(), nn.ParameterList()
         for fan_in, fan_out in zip(sizes[:-1], sizes[1:]):
             bound = 1.0 / np.sqrt(fan_in)  # nn.Linear's default initialisation
             self.weights.append(nn.Parameter(torch.empty(num_q, fan_in, fan_out).uniform_(-bound, bound)))
@@ -256,40 +306,31 @@ class TwinQ(nn.Module):
 
     def forward(self, obs, action, detach_params: bool = False):
         x = torch.cat([obs, action], -1).unsqueeze(0).expand(len(self.weights[0]), -1, -1)
-        last = len(self.weights) - 1
         for i, (w, b) in enumerate(zip(self.weights, self.biases)):
             if detach_params:  # gradients flow to the input (the action) only
                 w, b = w.detach(), b.detach()
             x = torch.baddbmm(b, x, w)
-            if i < last:
-                x = F.relu(x)
+            x = F.relu(x) if i < len(self.weights) - 1 else x
         return x.squeeze(-1)
 
 
-class SAC(nn.Module):
-    """Actor, twin critics, target critics and the temperature, with one `update` per env step.
-    absorbing=True (DAC's absorbing states, `--termination-remedy absorbing` of the imitation scripts):
-    observations carry a last indicator column, 1 at the absorbing state that follows a termination.
-    The actor never sees that column; at the absorbing state the only action is zero, so it has no
-    entropy term and no actor or temperature loss."""
+class SAC:
+    """Actor, twin critics, target critics and the temperature, each with its optimiser; one `update` per
+    env step. absorbing=True (DAC's absorbing states, `--termination-remedy absorbing`): observations carry
+    a last indicator column, 1 at the absorbing state that follows a termination. The actor never sees
+    that column; at the absorbing state the only action is zero, so it has no entropy term and no actor
+    or temperature loss."""
 
-    def __init__(self, obs_dim, act_dim, action_low, action_high, args, device, capturable: bool = False,
-                 absorbing: bool = False):
-        super().__init__()
-        self.absorbing = absorbing
-        self.actor = Actor(obs_dim - absorbing, act_dim, action_low, action_high, args.hidden_dim)
-        self.qf = TwinQ(obs_dim, act_dim, args.hidden_dim)
-        self.qf_target = TwinQ(obs_dim, act_dim, args.hidden_dim)
+    def __init__(self, obs_dim, act_dim, action_low, action_high, args, device, absorbing: bool = False):
+        self.absorbing, self.gamma, self.tau, self.target_entropy = absorbing, args.gamma, args.tau, -float(act_dim)
+        self.actor = Actor(obs_dim - absorbing, act_dim, action_low, action_high, args.hidden_dim).to(device)
+        self.qf = TwinQ(obs_dim, act_dim, args.hidden_dim).to(device)
+        self.qf_target = TwinQ(obs_dim, act_dim, args.hidden_dim).to(device).requires_grad_(False)
         self.qf_target.load_state_dict(self.qf.state_dict())
-        self.qf_target.requires_grad_(False)
-        self.log_alpha = nn.Parameter(torch.tensor(float(np.log(args.alpha))), requires_grad=args.autotune)
-        self.target_entropy = -float(act_dim)
-        self.gamma, self.tau = args.gamma, args.tau
-        self.to(device)
-        adam = dict(capturable=capturable, fused=True)  # capturable: the optimiser steps can sit in a CUDA graph
-        self.q_optimizer = torch.optim.Adam(self.qf.parameters(), lr=args.q_lr, **adam)
-        self.actor_optimizer = torch.optim.Adam(self.actor.parameters(), lr=args.policy_lr, **adam)
-        self.alpha_optimizer = torch.optim.Adam([self.log_alpha], lr=args.policy_lr, **adam) if args.autotune else None
+        self.log_alpha = torch.tensor(float(np.log(args.alpha)), device=device, requires_grad=args.autotune)
+        self.q_optimizer = torch.optim.Adam(self.qf.parameters(), lr=args.q_lr, fused=True)
+        self.actor_optimizer = torch.optim.Adam(self.actor.parameters(), lr=args.policy_lr, fused=True)
+        self.alpha_optimizer = torch.optim.Adam([self.log_alpha], lr=args.policy_lr, fused=True) if args.autotune else None
 
     def policy(self, obs):
         """a ~ pi(.|s) and log pi(a|s); with absorbing states, a = 0 and log pi = 0 where s is absorbing."""
@@ -323,9 +364,9 @@ class SAC(nn.Module):
         alpha_loss = -mean(self.log_alpha.exp() * (log_pi.detach() + self.target_entropy))
         return actor_loss, alpha_loss, -mean(log_pi.detach())
 
-    def update(self, obs, actions, next_obs, rewards, terminations):
+    def update(self, obs, actions, next_obs, rewards, terminations, prefix: str = "losses/") -> dict:
         """One SAC step: critics, then actor and temperature on the updated critics, then targets.
-        Returns a tensor of metrics (no .item() here: reading it synchronises)."""
+        Returns metric tensors keyed by their logged names (no .item() here: reading one synchronises)."""
         qf_loss, q_mean = self.critic_loss(obs, actions, next_obs, rewards, terminations)
         self.q_optimizer.zero_grad(set_to_none=False)
         qf_loss.backward()
@@ -343,15 +384,35 @@ class SAC(nn.Module):
 
         with torch.no_grad():
             torch._foreach_lerp_(list(self.qf_target.parameters()), list(self.qf.parameters()), self.tau)
-        return torch.stack([qf_loss, q_mean, actor_loss, alpha_loss, self.log_alpha.exp(), entropy]).detach()
+        metrics = dict(qf_loss=qf_loss, qf_values=q_mean, actor_loss=actor_loss, alpha_loss=alpha_loss, entropy=entropy)
+        return {prefix + name: value.detach() for name, value in metrics.items()} | {prefix + "alpha": self.log_alpha.exp()}
+
+    def parts(self) -> dict:
+        parts = dict(actor=self.actor, qf=self.qf, qf_target=self.qf_target, q_optimizer=self.q_optimizer,
+                     actor_optimizer=self.actor_optimizer, alpha_optimizer=self.alpha_optimizer)
+        return {name: part for name, part in parts.items() if part is not None}
+
+    def state_dict(self) -> dict:
+        """Networks, temperature and optimisers: all a resumed run needs (CORL's pattern)."""
+        return {name: part.state_dict() for name, part in self.parts().items()} | {"log_alpha": self.log_alpha.detach()}
+
+    def load_state_dict(self, state: dict) -> None:
+        for name, part in self.parts().items():
+            part.load_state_dict(state[name])
+        self.log_alpha.data.copy_(state["log_alpha"])
 
 
-METRIC_NAMES = ["qf_loss", "qf_values", "actor_loss", "alpha_loss", "alpha", "entropy"]
+class Batch(NamedTuple):
+    obs: torch.Tensor
+    actions: torch.Tensor
+    next_obs: torch.Tensor
+    rewards: torch.Tensor  # the env's reward: logged and measured, never learned from by an imitation script
+    terminations: torch.Tensor
+    extra: torch.Tensor  # the columns a script adds (rile.py: the trainer's action)
 
 
 class ReplayBuffer:
-    """Preallocated transitions, one row each: [obs | action | next_obs | reward | terminated | extra].
-    `extra_dim` columns hold whatever else a script stores per transition (none for plain SAC)."""
+    """Preallocated transitions, one row each: [obs | action | next_obs | reward | terminated | extra]."""
 
     def __init__(self, obs_dim: int, act_dim: int, capacity: int, device, extra_dim: int = 0):
         self.obs_dim, self.act_dim, self.capacity = obs_dim, act_dim, capacity
@@ -360,25 +421,22 @@ class ReplayBuffer:
 
     def add(self, obs, action, next_obs, reward, terminated, extra=()):
         row = np.concatenate([obs, action, next_obs, [reward, float(terminated)], extra]).astype(np.float32)
-        self.storage[self.pos].copy_(torch.from_numpy(row), non_blocking=False)
+        self.storage[self.pos].copy_(torch.from_numpy(row))
         self.pos = (self.pos + 1) % self.capacity
         self.size = min(self.size + 1, self.capacity)
 
-    def sample(self, batch_size: int, recent: Optional[int] = None):
+    def sample(self, batch_size: int, recent: Optional[int] = None) -> Batch:
         """Uniform rows; with `recent`, only from the last `recent` added (a FIFO buffer of that size)."""
         window = self.size if recent is None else min(recent, self.size)
         idx = torch.randint(0, window, (batch_size,), device=self.storage.device)
         if window < self.size:
             idx = (self.pos - 1 - idx) % self.capacity
-        return self.storage[idx]
+        return self.batch(idx)
 
-    def split(self, rows):
-        """rows (B, width) -> obs, actions, next_obs, rewards, terminations."""
-        o, a = self.obs_dim, self.act_dim
-        return rows[:, :o], rows[:, o : o + a], rows[:, o + a : 2 * o + a], rows[:, 2 * o + a], rows[:, 2 * o + a + 1]
-
-    def extra(self, rows):
-        return rows[:, 2 * self.obs_dim + self.act_dim + 2 :]
+    def batch(self, idx) -> Batch:
+        rows, o, a = self.storage[idx], self.obs_dim, self.act_dim
+        return Batch(rows[:, :o], rows[:, o : o + a], rows[:, o + a : 2 * o + a], rows[:, 2 * o + a],
+                     rows[:, 2 * o + a + 1], rows[:, 2 * o + a + 2 :])
 
     def state_dict(self):
         return {"storage": self.storage[: self.size].cpu().clone(), "pos": self.pos, "size": self.size}
@@ -387,152 +445,6 @@ class ReplayBuffer:
         self.size, self.pos = state["size"], state["pos"]
         self.storage[: self.size].copy_(state["storage"])
 # --- end shared: sac ---
-
-
-# --- shared: evaluation ---
-def evaluate(act, env_id: str, num_episodes: int, seed: int, capture_video_dir: Optional[str] = None):
-    """Deterministic policy on its own env; episode i starts from reset(seed=seed + i), so every
-    evaluation of a run sees the same start states. Returns the list of episode returns."""
-    env = make_env(env_id, seed, render_mode="rgb_array" if capture_video_dir else None)
-    if capture_video_dir:
-        env = gym.wrappers.RecordVideo(env, capture_video_dir, episode_trigger=lambda ep: ep == 0, disable_logger=True)
-    returns = []
-    for i in range(num_episodes):
-        obs, _ = env.reset(seed=seed + i)
-        done, ep_return = False, 0.0
-        while not done:
-            obs, reward, terminated, truncated, _ = env.step(act(obs, deterministic=True))
-            ep_return += float(reward)
-            done = terminated or truncated
-        returns.append(ep_return)
-    env.close()
-    return returns
-# --- end shared: evaluation ---
-
-
-# --- shared: results ---
-def cpu_name() -> str:
-    try:
-        with open("/proc/cpuinfo") as f:
-            return next(line.split(":", 1)[1].strip() for line in f if line.startswith("model name"))
-    except (OSError, StopIteration):
-        return platform.processor() or platform.machine()
-
-
-def machine_info(device) -> dict:
-    git = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
-                         cwd=os.path.dirname(os.path.abspath(__file__)))
-    info = {"host": platform.node(), "cpu": cpu_name(),
-            "cpu_count": os.cpu_count(), "torch": torch.__version__, "threads": torch.get_num_threads(),
-            "device": str(device), "python": platform.python_version(), "gymnasium": gym.__version__,
-            "git_commit": git.stdout.strip() if git.returncode == 0 else None}
-    if torch.device(device).type == "cuda":
-        info["gpu"] = torch.cuda.get_device_name(device)
-    return info
-
-
-def write_results(path: str, args, evals: list, expert_return: Optional[float], wall_time: float,
-                  sps: float, machine: dict, finished: bool) -> None:
-    """results.json: the run's config, its evaluation curve and where it ran (format in README)."""
-    final = evals[-1] if evals else None
-    results = {
-        "algo": args.exp_name, "env_id": args.env_id, "seed": args.seed, "finished": finished,
-        "evals": evals,  # [{"step", "mean", "std", "normalized"}]
-        "final_return": final["mean"] if final else None,
-        "final_normalized_return": final["normalized"] if final else None,
-        "expert_return": expert_return, "wall_time_s": wall_time, "sps": sps,
-        "machine": machine, "config": asdict(args),
-    }
-    with open(path + ".tmp", "w") as f:
-        json.dump(results, f, indent=1)
-    os.replace(path + ".tmp", path)
-def format_time(seconds: float) -> str:
-    seconds = int(seconds)
-    return f"{seconds // 3600}h{seconds % 3600 // 60:02d}m" if seconds >= 3600 else f"{seconds // 60}m{seconds % 60:02d}s"
-# --- end shared: results ---
-
-
-# --- shared: checkpoint ---
-class StopRequest:
-    """Turns Ctrl-C / SIGTERM into a flag that the loop checks, so the run can save and exit cleanly."""
-
-    def __init__(self):
-        self.signum = 0
-        signal.signal(signal.SIGINT, self._handler)
-        signal.signal(signal.SIGTERM, self._handler)
-
-    def _handler(self, signum, frame):
-        if self.signum:  # a second Ctrl-C stops at once
-            raise KeyboardInterrupt
-        self.signum = signum
-        print(f"\nsignal {signum}: saving a checkpoint at the end of this step, then exiting", flush=True)
-
-
-def save_checkpoint(path: str, state: dict) -> None:
-    torch.save(state, path + ".tmp")
-    os.replace(path + ".tmp", path)  # atomic: an interrupted save never leaves a broken checkpoint
-
-
-def load_checkpoint(path: str) -> dict:
-    if os.path.isdir(path):
-        path = os.path.join(path, "checkpoint.pt")
-    if not os.path.isfile(path):
-        raise SystemExit(f"error: no checkpoint at '{path}'; pass --resume runs/<run> of a run that saved one")
-    try:
-        return torch.load(path, map_location="cpu", weights_only=False)
-    except Exception as e:
-        raise SystemExit(f"error: cannot read checkpoint '{path}' ({type(e).__name__}: {e})") from None
-
-
-def rng_state() -> dict:
-    return {"python": random.getstate(), "numpy": np.random.get_state(), "torch": torch.get_rng_state(),
-            "cuda": torch.cuda.get_rng_state_all() if torch.cuda.is_available() else None}
-
-
-def set_rng_state(state: dict) -> None:
-    random.setstate(state["python"])
-    np.random.set_state(state["numpy"])
-    torch.set_rng_state(state["torch"])
-    if state["cuda"] is not None and torch.cuda.is_available():
-        torch.cuda.set_rng_state_all(state["cuda"])
-
-
-def resume_args(cli_args, saved_config: dict):
-    """The saved run's config, with the fields a user may change on resume taken from the command line
-    when they differ from their defaults."""
-    args = type(cli_args)(**{f.name: saved_config[f.name] for f in fields(cli_args) if f.name in saved_config})
-    defaults = type(cli_args)()
-    for name in ("total_timesteps", "cuda", "compile", "cudagraphs", "threads"):
-        if hasattr(cli_args, name) and getattr(cli_args, name) != getattr(defaults, name):
-            setattr(args, name, getattr(cli_args, name))
-    args.resume = cli_args.resume
-    return args
-# --- end shared: checkpoint ---
-
-
-# --- shared: actor io ---
-def save_actor(path: str, actor: Actor, env_id: str, obs_dim: int, act_dim: int, hidden_dim: int, **extra) -> None:
-    """The actor alone, with what is needed to rebuild it: any script's actor.pt can record demos."""
-    torch.save({"actor": actor.state_dict(), "env_id": env_id, "obs_dim": obs_dim, "act_dim": act_dim,
-                "hidden_dim": hidden_dim, **extra}, path)
-
-
-def load_actor(path: str, env: gym.Env, device="cpu"):
-    """Rebuild a saved actor for `env`, with clear errors for a missing file or another env's actor."""
-    if not os.path.isfile(path):
-        raise SystemExit(f"error: no actor checkpoint at '{path}'")
-    try:
-        ckpt = torch.load(path, map_location="cpu", weights_only=True)
-    except Exception as e:
-        raise SystemExit(f"error: cannot read actor checkpoint '{path}' ({type(e).__name__}: {e})") from None
-    obs_dim, act_dim = env.observation_space.shape[0], env.action_space.shape[0]
-    if (ckpt.get("obs_dim"), ckpt.get("act_dim")) != (obs_dim, act_dim):
-        raise SystemExit(f"error: actor '{path}' was saved for {ckpt.get('env_id')} (obs {ckpt.get('obs_dim')}, "
-                         f"act {ckpt.get('act_dim')}), not for {env.spec.id} (obs {obs_dim}, act {act_dim})")
-    actor = Actor(obs_dim, act_dim, env.action_space.low, env.action_space.high, ckpt["hidden_dim"])
-    actor.load_state_dict(ckpt["actor"])
-    return actor.to(device).eval(), ckpt
-# --- end shared: actor io ---
 
 
 # --- shared: demonstrations ---
@@ -630,212 +542,248 @@ def absorbing_expert(expert: dict) -> dict:
 # --- end shared: absorbing ---
 
 
-# --- shared: discriminator ---
-class Discriminator(nn.Module):
-    """D(x) = sigmoid(logit(x)), expert = 1, trained with BCE and a one-centred gradient penalty on
-    random interpolates of expert and policy inputs."""
-
-    def __init__(self, in_dim: int, hidden_dim: int, lr: float, gp_weight: float):
-        super().__init__()
-        self.net = nn.Sequential(nn.Linear(in_dim, hidden_dim), nn.Tanh(), nn.Linear(hidden_dim, hidden_dim),
-                                 nn.Tanh(), nn.Linear(hidden_dim, 1))
-        self.gp_weight = gp_weight
-        self.optimizer = torch.optim.Adam(self.parameters(), lr=lr)
-
-    def forward(self, x):
-        return self.net(x).squeeze(-1)
-
-    def loss(self, expert_x, policy_x):
-        """BCE(D(expert), 1) + BCE(D(policy), 0) + gp_weight * E[(||grad_x logit(x_hat)|| - 1)^2]."""
-        expert_logits, policy_logits = self(expert_x), self(policy_x)
-        bce = (F.binary_cross_entropy_with_logits(expert_logits, torch.ones_like(expert_logits))
-               + F.binary_cross_entropy_with_logits(policy_logits, torch.zeros_like(policy_logits)))
-        eps = torch.rand(len(expert_x), 1, device=expert_x.device)
-        x_hat = (eps * expert_x + (1 - eps) * policy_x).requires_grad_(True)
-        grad = torch.autograd.grad(self(x_hat).sum(), x_hat, create_graph=True)[0]
-        gp = (grad.norm(2, dim=1) - 1).pow(2).mean()
-        return bce + self.gp_weight * gp, bce, gp, torch.sigmoid(expert_logits).mean(), torch.sigmoid(policy_logits).mean()
-
-    def update(self, expert_x, policy_x):
-        loss, bce, gp, expert_prob, policy_prob = self.loss(expert_x, policy_x)
-        self.optimizer.zero_grad(set_to_none=False)
-        loss.backward()
-        self.optimizer.step()
-        return torch.stack([bce, gp, expert_prob, policy_prob]).detach()
-
-    @torch.no_grad()
-    def prob(self, x):
-        return torch.sigmoid(self(x))
+# --- shared: evaluation ---
+def evaluate(act, env_id: str, num_episodes: int, seed: int, capture_video_dir: Optional[str] = None):
+    """Deterministic policy on its own env; episode i starts from reset(seed=seed + i), so every
+    evaluation of a run sees the same start states. Returns the list of episode returns."""
+    env = make_env(env_id, seed, render_mode="rgb_array" if capture_video_dir else None)
+    if capture_video_dir:
+        env = gym.wrappers.RecordVideo(env, capture_video_dir, episode_trigger=lambda ep: ep == 0, disable_logger=True)
+    returns = []
+    for i in range(num_episodes):
+        obs, _ = env.reset(seed=seed + i)
+        done, ep_return = False, 0.0
+        while not done:
+            obs, reward, terminated, truncated, _ = env.step(act(obs, deterministic=True))
+            ep_return += float(reward)
+            done = terminated or truncated
+        returns.append(ep_return)
+    env.close()
+    return returns
+# --- end shared: evaluation ---
 
 
-DISC_METRIC_NAMES = ["losses/disc_loss", "losses/disc_gp", "disc/expert_prob", "disc/policy_prob"]
-# --- end shared: discriminator ---
+# --- shared: run ---
+class Run:
+    """Everything around the method: the run directory (config.json, TensorBoard, results.json), evaluation
+    every --eval-freq steps, a progress line every 30 s, a checkpoint every --checkpoint-freq steps and on
+    Ctrl-C / SIGTERM, and --resume. `stateful` names the objects with state_dict() / load_state_dict() (the
+    learners with their optimisers, the replay buffer; a plain dict is saved as it is): a checkpoint is
+    their states, the RNG states and the run's progress."""
+
+    def __init__(self, args, checkpoint: Optional[dict], stateful: dict, expert_return: Optional[float], device):
+        self.args, self.stateful, self.expert_return = args, stateful, expert_return
+        default_name = f"{args.env_id}__{args.exp_name}__{args.seed}__{int(time.time())}"
+        self.name = checkpoint["run_name"] if checkpoint else (args.run_name or default_name)
+        self.dir = os.path.join("runs", self.name)
+        os.makedirs(self.dir, exist_ok=True)
+        with open(os.path.join(self.dir, "config.json"), "w") as f:
+            json.dump(asdict(args), f, indent=1)
+        if args.track:
+            import wandb
+
+            wandb.init(project=args.wandb_project_name, entity=args.wandb_entity, sync_tensorboard=True,
+                       config=vars(args), name=self.name, id=self.name, resume="allow", save_code=True)
+        from torch.utils.tensorboard import SummaryWriter
+
+        self.writer = SummaryWriter(self.dir)
+        table = "\n".join(f"|{k}|{v}|" for k, v in vars(args).items())
+        self.writer.add_text("hyperparameters", f"|param|value|\n|-|-|\n{table}")
+        self.machine = {"host": platform.node(), "torch": torch.__version__, "threads": torch.get_num_threads(),
+                        "device": str(device)}
+        self.evals, self.start_step, self.wall_offset = [], 0, 0.0
+        if checkpoint:
+            for name, obj in stateful.items():
+                if isinstance(obj, dict):
+                    obj.update({k: v.to(device) if torch.is_tensor(v) else v for k, v in checkpoint[name].items()})
+                else:
+                    obj.load_state_dict(checkpoint[name])
+            self.evals, self.start_step, self.wall_offset = checkpoint["evals"], checkpoint["step"], checkpoint["wall_time"]
+            set_rng_state(checkpoint["rng"])
+            print(f"resumed {self.dir} at step {self.start_step}")
+        self.stop_signal, self.sps, self.learn_steps, self.learn_time, self.last_print = 0, 0.0, 0, 0.0, 0.0
+        signal.signal(signal.SIGINT, self.on_signal)
+        signal.signal(signal.SIGTERM, self.on_signal)
+        self.start_time, self.tick = time.time(), time.perf_counter()
+
+    def on_signal(self, signum, frame):
+        if self.stop_signal:  # a second Ctrl-C stops at once
+            raise KeyboardInterrupt
+        self.stop_signal = signum
+        print(f"\nsignal {signum}: saving a checkpoint at the end of this step, then exiting", flush=True)
+
+    def log(self, metrics: dict, step: int) -> None:
+        for name, value in metrics.items():
+            self.writer.add_scalar(name, float(value), step)
+
+    def end_step(self, step: int, act, status: str = "") -> None:
+        """After env step `step` (counted from 1): speed, evaluation, progress line, checkpoint."""
+        args = self.args
+        if step > getattr(args, "learning_starts", 0):  # SPS counts the steps that learn, evaluation excluded
+            self.learn_steps, self.learn_time = self.learn_steps + 1, self.learn_time + time.perf_counter() - self.tick
+            self.sps = self.learn_steps / self.learn_time
+            if step % 1000 == 1:
+                self.log({"charts/SPS": self.sps}, step - 1)
+        if step % args.eval_freq == 0 or step == args.total_timesteps:
+            self.evaluate(step, act)
+        if time.time() - self.last_print > 30 or step == args.total_timesteps:
+            self.last_print = time.time()
+            left = format_time((args.total_timesteps - step) / self.sps) if self.sps > 0 else "?"
+            print(f"step {step}/{args.total_timesteps} | {self.sps:.0f} SPS | eval return {self.last_eval()}{status} | "
+                  f"left {left}", flush=True)
+        checkpoint_freq = getattr(args, "checkpoint_freq", 0)
+        if self.stop_signal or (checkpoint_freq and step % checkpoint_freq == 0 and step < args.total_timesteps):
+            self.save_checkpoint(step)
+            if self.stop_signal:
+                print(f"checkpoint saved at step {step}; continue with: python {sys.argv[0]} --resume {self.dir}")
+                self.writer.close()
+                sys.exit(128 + self.stop_signal)
+        self.tick = time.perf_counter()
+
+    def evaluate(self, step: int, act) -> None:
+        """--eval-episodes of the deterministic policy, logged and written to results.json."""
+        returns = evaluate(act, self.args.env_id, self.args.eval_episodes, seed=self.args.seed + 100_000)
+        mean, std = float(np.mean(returns)), float(np.std(returns))
+        normalized = mean / self.expert_return if self.expert_return else None
+        self.evals.append({"step": step, "mean": mean, "std": std, "normalized": normalized})
+        self.log({"eval/return": mean} | ({"eval/normalized_return": normalized} if normalized is not None else {}), step)
+        self.write_results(finished=False)
+
+    def last_eval(self) -> str:
+        if not self.evals:
+            return "-"
+        e = self.evals[-1]
+        versus = f" = {e['normalized']:.2f} x expert {self.expert_return:.1f}" if e["normalized"] is not None else ""
+        return f"{e['mean']:.1f} +- {e['std']:.1f}{versus} (step {e['step']})"
+
+    def save_checkpoint(self, step: int) -> None:
+        state = {name: dict(obj) if isinstance(obj, dict) else obj.state_dict() for name, obj in self.stateful.items()}
+        state.update(step=step, evals=self.evals, wall_time=self.wall_time(), rng=rng_state(), config=asdict(self.args),
+                     run_name=self.name)
+        path = os.path.join(self.dir, "checkpoint.pt")
+        torch.save(state, path + ".tmp")
+        os.replace(path + ".tmp", path)  # atomic: an interrupted save never leaves a broken checkpoint
+
+    def wall_time(self) -> float:
+        return self.wall_offset + time.time() - self.start_time
+
+    def write_results(self, finished: bool) -> None:
+        """results.json: the run's config, its evaluation curve and where it ran (format in README)."""
+        final = self.evals[-1] if self.evals else {}
+        results = {
+            "algo": self.args.exp_name, "env_id": self.args.env_id, "seed": self.args.seed, "finished": finished,
+            "evals": self.evals, "final_return": final.get("mean"), "final_normalized_return": final.get("normalized"),
+            "expert_return": self.expert_return, "wall_time_s": self.wall_time(), "sps": self.sps,
+            "machine": self.machine, "config": asdict(self.args),
+        }
+        path = os.path.join(self.dir, "results.json")
+        with open(path + ".tmp", "w") as f:
+            json.dump(results, f, indent=1)
+        os.replace(path + ".tmp", path)
+
+    def finish(self, act, models: dict, status: str = "") -> None:
+        """The last checkpoint and results.json, the models (unless --no-save-model), a video (--capture-video)."""
+        args = self.args
+        if hasattr(args, "checkpoint_freq"):  # scripts without checkpoints (bc.py) have no such flag
+            self.save_checkpoint(args.total_timesteps)
+        self.write_results(finished=True)
+        if args.save_model:
+            for filename, content in models.items():
+                torch.save(content, os.path.join(self.dir, filename))
+            print(f"saved {', '.join(os.path.join(self.dir, filename) for filename in models)}")
+        if args.capture_video:
+            evaluate(act, args.env_id, 1, seed=args.seed + 100_000, capture_video_dir=os.path.join(self.dir, "videos"))
+        self.writer.close()
+        if self.evals:
+            print(f"done: {args.total_timesteps} steps in {format_time(self.wall_time())}, final eval return "
+                  f"{self.last_eval()}{status}")
 
 
-# ALGO LOGIC: GAIL's reward and update (a block drail_disc.py shares)
-# --- shared: gail ---
-def gail_reward(logits, form: str):
-    """The SAC reward from the discriminator's logit l (D = sigmoid(l)), computed stably."""
-    if form == "softplus":
-        return F.softplus(logits)  # -log(1 - D)
-    if form == "logit":
-        return logits  # log D - log(1 - D)
-    if form == "log-d":
-        return -F.softplus(-logits)  # log D
-    raise ValueError(f"unknown reward form '{form}'; choose softplus, logit or log-d")
+def format_time(seconds: float) -> str:
+    seconds = int(seconds)
+    return f"{seconds // 3600}h{seconds % 3600 // 60:02d}m" if seconds >= 3600 else f"{seconds // 60}m{seconds % 60:02d}s"
 
 
-def gail_update(agent: "SAC", disc: nn.Module, rb: "ReplayBuffer", expert: dict, args) -> dict:
-    """One SAC update on rewards from the current discriminator, then one discriminator update."""
-    obs, actions, next_obs, _env_reward, terminations = rb.split(rb.sample(args.batch_size))
-    with torch.no_grad():
-        rewards = gail_reward(disc(torch.cat([obs, actions], -1)), args.reward_form)
-    out = {"sac": agent.update(obs, actions, next_obs, rewards, terminations),
-           "reward": torch.stack([rewards.mean(), rewards.std()])}
-    idx = torch.randint(0, len(expert["obs"]), (args.disc_batch_size,), device=expert["obs"].device)
-    s, a = rb.split(rb.sample(args.disc_batch_size, recent=args.disc_buffer_size))[:2]
-    out["disc"] = disc.update(torch.cat([expert["obs"][idx], expert["actions"][idx]], -1), torch.cat([s, a], -1))
-    return out
-# --- end shared: gail ---
+def resume(args):
+    """--resume: the saved checkpoint, and the saved run's config with the fields a user may change on
+    resume (total_timesteps, cuda, threads) taken from the command line where they differ from their defaults."""
+    path = os.path.join(args.resume, "checkpoint.pt") if os.path.isdir(args.resume) else args.resume
+    if not os.path.isfile(path):
+        raise SystemExit(f"error: no checkpoint at '{path}'; pass --resume runs/<run> of a run that saved one")
+    try:
+        checkpoint = torch.load(path, map_location="cpu", weights_only=False)
+    except Exception as e:
+        raise SystemExit(f"error: cannot read checkpoint '{path}' ({type(e).__name__}: {e})") from None
+    saved = type(args)(**{f.name: checkpoint["config"][f.name] for f in fields(args) if f.name in checkpoint["config"]})
+    for name in ("total_timesteps", "cuda", "threads", "compile", "cudagraphs"):
+        if hasattr(args, name) and getattr(args, name) != getattr(type(args)(), name):
+            setattr(saved, name, getattr(args, name))
+    saved.resume = args.resume
+    return saved, checkpoint
+
+
+def rng_state() -> dict:
+    return {"python": random.getstate(), "numpy": np.random.get_state(), "torch": torch.get_rng_state(),
+            "cuda": torch.cuda.get_rng_state_all() if torch.cuda.is_available() else None}
+
+
+def set_rng_state(state: dict) -> None:
+    random.setstate(state["python"])
+    np.random.set_state(state["numpy"])
+    torch.set_rng_state(state["torch"])
+    if state["cuda"] is not None and torch.cuda.is_available():
+        torch.cuda.set_rng_state_all(state["cuda"])
+# --- end shared: run ---
 
 
 if __name__ == "__main__":
     args = tyro.cli(Args)
-    checkpoint = None
-    if args.resume:
-        checkpoint = load_checkpoint(args.resume)
-        args = resume_args(args, checkpoint["config"])
+    args, checkpoint = resume(args) if args.resume else (args, None)
     torch.set_num_threads(args.threads)
     device = torch.device("cuda" if torch.cuda.is_available() and args.cuda else "cpu")
     seed_everything(args.seed, args.torch_deterministic)
     env = make_env(args.env_id, args.seed)
     obs_dim, act_dim = env.observation_space.shape[0], env.action_space.shape[0]
     low, high = env.action_space.low, env.action_space.high
-    demos = load_demonstrations(args.expert_path or os.path.join("experts", f"{args.env_id}.npz"), env, args.num_expert_trajs)
+    demos = load_demonstrations(args.expert_path or f"experts/{args.env_id}.npz", env, args.num_expert_trajs)
     expert = expert_tensors(demos, args, low, high, device)
     absorbing = args.termination_remedy == "absorbing"
     if absorbing:
         expert = absorbing_expert(expert)
-    expert_return = float(demos["episode_returns"].mean())
-
-    run_name = checkpoint["run_name"] if checkpoint else (
-        args.run_name or f"{args.env_id}__{args.exp_name}__{args.seed}__{int(time.time())}")
-    run_dir = os.path.join("runs", run_name)
-    os.makedirs(run_dir, exist_ok=True)
-    with open(os.path.join(run_dir, "config.json"), "w") as f:
-        json.dump(asdict(args), f, indent=1)
-    if args.track:
-        import wandb
-
-        wandb.init(project=args.wandb_project_name, entity=args.wandb_entity, sync_tensorboard=True,
-                   config=vars(args), name=run_name, id=run_name, resume="allow", save_code=True)
-    from torch.utils.tensorboard import SummaryWriter
-
-    writer = SummaryWriter(run_dir)
-    writer.add_text("hyperparameters", "|param|value|\n|-|-|\n" + "\n".join(f"|{k}|{v}|" for k, v in vars(args).items()))
     print(f"GAIL reward: {args.reward_form} of the discriminator's logit")
 
-    # ALGO LOGIC: the learner, the discriminator and the replay buffer
+    # ALGO LOGIC: the agent, the discriminator and the replay buffer
     aug_dim = obs_dim + absorbing  # with absorbing states, every stored observation has the indicator column
     agent = SAC(aug_dim, act_dim, low, high, args, device, absorbing=absorbing)
     disc = Discriminator(aug_dim + act_dim, args.disc_hidden_dim, args.disc_lr, args.disc_gp).to(device)
     rb = ReplayBuffer(aug_dim, act_dim, args.buffer_size, device)
-    evals, start_step, wall_offset = [], 0, 0.0
-    if checkpoint:
-        agent.load_state_dict(checkpoint["agent"])
-        for opt in ("q_optimizer", "actor_optimizer", "alpha_optimizer"):
-            if getattr(agent, opt) is not None:
-                getattr(agent, opt).load_state_dict(checkpoint[opt])
-        disc.load_state_dict(checkpoint["disc"])
-        disc.optimizer.load_state_dict(checkpoint["disc_optimizer"])
-        rb.load_state_dict(checkpoint["replay_buffer"])
-        evals, start_step, wall_offset = checkpoint["evals"], checkpoint["global_step"], checkpoint["wall_time"]
-        set_rng_state(checkpoint["rng"])
-        print(f"resumed {run_dir} at step {start_step} ({rb.size} transitions in the replay buffer)")
-    act = make_act_fn(agent.actor, obs_dim, device, cudagraphs=False)
-    machine = machine_info(device)
-
-    def checkpoint_state(step):
-        ckpt = {"agent": agent.state_dict(), "disc": disc.state_dict(), "disc_optimizer": disc.optimizer.state_dict(),
-                "replay_buffer": rb.state_dict(), "global_step": step, "evals": evals,
-                "wall_time": wall_offset + time.time() - start_time, "rng": rng_state(), "config": asdict(args),
-                "run_name": run_name}
-        for opt in ("q_optimizer", "actor_optimizer", "alpha_optimizer"):
-            if getattr(agent, opt) is not None:
-                ckpt[opt] = getattr(agent, opt).state_dict()
-        return ckpt
+    stateful = {"agent": agent, "disc": disc, "disc_optimizer": disc.optimizer, "replay_buffer": rb}
+    run = Run(args, checkpoint, stateful, float(demos["episode_returns"].mean()), device)
 
     # TRY NOT TO MODIFY: start the game
-    stop = StopRequest()
-    start_time = time.time()
-    learn_time, learn_steps, sps, last_print = 0.0, 0, 0.0, 0.0  # SPS counts steps after learning starts, evaluation excluded
-    obs, _ = env.reset(seed=args.seed + start_step)
-    for global_step in range(start_step, args.total_timesteps):
-        step_start = time.perf_counter()
+    obs, _ = env.reset(seed=args.seed + run.start_step)
+    for global_step in range(run.start_step, args.total_timesteps):
         if global_step < args.learning_starts:
             action = env.action_space.sample()
         else:
-            action = act(obs)
+            action = agent.actor.act(obs)
         next_obs, reward, terminated, truncated, info = env.step(action)
         store(rb, obs, action, next_obs, reward, terminated, absorbing)  # the env reward is stored, never learned from
         obs = next_obs
         if terminated or truncated:
-            writer.add_scalar("charts/episodic_return", info["episode"]["r"], global_step)
-            writer.add_scalar("charts/episodic_length", info["episode"]["l"], global_step)
+            run.log({"charts/episodic_return": info["episode"]["r"], "charts/episodic_length": info["episode"]["l"]}, global_step)
             obs, _ = env.reset()
 
         # ALGO LOGIC: training
         if global_step >= args.learning_starts:
             metrics = gail_update(agent, disc, rb, expert, args)
-            learn_time, learn_steps = learn_time + time.perf_counter() - step_start, learn_steps + 1
-            sps = learn_steps / learn_time
             if global_step % 1000 == 0:
-                for key, value in zip(METRIC_NAMES, metrics["sac"].tolist()):
-                    writer.add_scalar(f"losses/{key}", value, global_step)
-                for key, value in zip(DISC_METRIC_NAMES, metrics["disc"].tolist()):
-                    writer.add_scalar(key, value, global_step)
-                mean, std = metrics["reward"].tolist()
-                writer.add_scalar("reward/learned_mean", mean, global_step)
-                writer.add_scalar("reward/learned_std", std, global_step)
-                writer.add_scalar("charts/SPS", sps, global_step)
+                run.log(metrics, global_step)
+        run.end_step(global_step + 1, agent.actor.act)
 
-        step = global_step + 1
-        if step % args.eval_freq == 0 or step == args.total_timesteps:
-            returns = evaluate(act, args.env_id, args.eval_episodes, seed=args.seed + 100_000)
-            mean = float(np.mean(returns))
-            evals.append({"step": step, "mean": mean, "std": float(np.std(returns)), "normalized": mean / expert_return})
-            writer.add_scalar("eval/return", mean, step)
-            writer.add_scalar("eval/normalized_return", mean / expert_return, step)
-            write_results(os.path.join(run_dir, "results.json"), args, evals, expert_return,
-                          wall_offset + time.time() - start_time, sps, machine, finished=False)
-        if time.time() - last_print > 30 or step == args.total_timesteps:
-            last_print = time.time()
-            last = (f"{evals[-1]['mean']:.1f} = {evals[-1]['normalized']:.2f} x expert {expert_return:.1f} "
-                    f"(step {evals[-1]['step']})") if evals else "-"
-            print(f"step {step}/{args.total_timesteps} | {sps:.0f} SPS | eval return {last} | left "
-                  f"{format_time((args.total_timesteps - step) / sps) if sps > 0 else '?'}", flush=True)
-        if stop.signum or (args.checkpoint_freq and step % args.checkpoint_freq == 0 and step < args.total_timesteps):
-            save_checkpoint(os.path.join(run_dir, "checkpoint.pt"), checkpoint_state(step))
-            if stop.signum:
-                print(f"checkpoint saved at step {step}; continue with: python {sys.argv[0]} --resume {run_dir}")
-                writer.close()
-                sys.exit(128 + stop.signum)
-
-    wall_time = wall_offset + time.time() - start_time
-    save_checkpoint(os.path.join(run_dir, "checkpoint.pt"), checkpoint_state(args.total_timesteps))
-    write_results(os.path.join(run_dir, "results.json"), args, evals, expert_return, wall_time, sps, machine, finished=True)
-    if args.save_model:
-        save_actor(os.path.join(run_dir, "actor.pt"), agent.actor, args.env_id, obs_dim, act_dim, args.hidden_dim,
-                   training_steps=args.total_timesteps)
-        torch.save({"disc": disc.state_dict(), "env_id": args.env_id, "obs_dim": obs_dim, "act_dim": act_dim,
-                    "disc_hidden_dim": args.disc_hidden_dim, "reward_form": args.reward_form,
-                    "termination_remedy": args.termination_remedy},
-                   os.path.join(run_dir, "reward.pt"))
-        print(f"saved {run_dir}/actor.pt and the discriminator {run_dir}/reward.pt")
-    if args.capture_video:
-        evaluate(act, args.env_id, 1, seed=args.seed + 100_000, capture_video_dir=os.path.join(run_dir, "videos"))
+    reward_file = {"disc": disc.state_dict(), "env_id": args.env_id, "obs_dim": obs_dim, "act_dim": act_dim,
+                   "disc_hidden_dim": args.disc_hidden_dim, "reward_form": args.reward_form,
+                   "termination_remedy": args.termination_remedy}
+    run.finish(agent.actor.act, {"actor.pt": actor_file(agent.actor, args.env_id, training_steps=args.total_timesteps),
+                                 "reward.pt": reward_file})
     env.close()
-    writer.close()
-    if evals:
-        print(f"done: {args.total_timesteps} steps in {format_time(wall_time)}, final eval return {evals[-1]['mean']:.1f} "
-              f"+- {evals[-1]['std']:.1f} ({evals[-1]['normalized']:.2f} x expert {expert_return:.1f})")

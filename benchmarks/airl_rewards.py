@@ -6,7 +6,6 @@ with `--termination-remedy absorbing`: staying in the absorbing state forever is
 """
 
 import argparse
-import dataclasses
 import os
 import sys
 
@@ -23,9 +22,7 @@ def main():
     parser.add_argument("--recent", type=int, default=20000, help="how many of the newest replay transitions")
     cli = parser.parse_args()
     torch.set_num_threads(1)
-    ckpt = airl.load_checkpoint(cli.run_dir)
-    names = {f.name for f in dataclasses.fields(airl.Args)}
-    args = airl.Args(**{k: v for k, v in ckpt["config"].items() if k in names})
+    args, ckpt = airl.resume(airl.Args(resume=cli.run_dir))  # the run's config and its checkpoint
     if args.termination_remedy != "absorbing":
         sys.exit(f"error: {cli.run_dir} was trained with --termination-remedy {args.termination_remedy}; "
                  "this check is for absorbing-state runs")
@@ -45,16 +42,16 @@ def main():
 
     with torch.no_grad():
         f_expert = disc(expert["obs"], expert["actions"], expert["next_obs"], expert["terminations"])
-        obs, actions, next_obs, _, terms = rb.split(rb.storage[max(0, rb.size - cli.recent):rb.size])
-        f_policy = disc(obs, actions, next_obs, terms)
-    at_abs = obs[:, -1] > 0
-    into_abs = (next_obs[:, -1] > 0) & ~at_abs
+        recent = rb.batch(torch.arange(max(0, rb.size - cli.recent), rb.size))
+        f_policy = disc(recent.obs, recent.actions, recent.next_obs, recent.terminations)
+    at_abs = recent.obs[:, -1] > 0
+    into_abs = (recent.next_obs[:, -1] > 0) & ~at_abs
     living = ~at_abs & ~into_abs
     horizon = 1 / (1 - args.gamma)
-    print(f"{cli.run_dir} at step {ckpt['global_step']}, gamma {args.gamma}")
+    print(f"{cli.run_dir} at step {ckpt['step']}, gamma {args.gamma}")
     print(f"f on the demonstrations:              mean {f_expert.mean():8.2f}  std {f_expert.std():6.2f}")
     print(f"f on the learner's living transitions: mean {f_policy[living].mean():8.2f}  std {f_policy[living].std():6.2f}"
-          f"  (newest {len(obs)} of the replay buffer)")
+          f"  (newest {len(recent.obs)} of the replay buffer)")
     if at_abs.any():
         print(f"f into the absorbing state:           mean {f_policy[into_abs].mean():8.2f}  ({int(into_abs.sum())} falls)")
         print(f"f at the absorbing state:             mean {f_policy[at_abs].mean():8.2f}")

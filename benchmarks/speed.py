@@ -85,6 +85,14 @@ def run_sb3(args, workdir: str) -> float:
         return json.load(f)["sps"]
 
 
+def cpu_name() -> str:
+    try:
+        with open("/proc/cpuinfo") as f:
+            return next(line.split(":", 1)[1].strip() for line in f if line.startswith("model name"))
+    except (OSError, StopIteration):
+        return platform.processor() or platform.machine()
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--env-id", default="Hopper-v4")
@@ -98,9 +106,6 @@ def main():
     args = parser.parse_args()
 
     import torch
-
-    sys.path.insert(0, ROOT)
-    import expert
 
     # the machine's speed drifts (shared host): alternate the implementations and report medians
     runs = {"sb3": []} | {NAMES[v]: [] for v in args.variants}
@@ -117,7 +122,7 @@ def main():
         "what": "env steps per second after learning starts, evaluation excluded",
         "env_id": args.env_id, "learning_starts": args.learning_starts, "timed_steps": args.steps,
         "repeats": args.repeats, "drail_width": args.drail_width, "sps_runs": runs, "sps": results, "ratio_to_sb3": {k: v / results["sb3"] for k, v in results.items() if k != "sb3"},
-        "machine": {"cpu": expert.cpu_name(), "cpu_count": os.cpu_count(),
+        "machine": {"cpu": cpu_name(), "cpu_count": os.cpu_count(),
                     "torch": torch.__version__, "threads": args.threads, "python": platform.python_version()},
         "git_commit": git.stdout.strip() or None, "date": time.strftime("%Y-%m-%d %H:%M"),
         "command": " ".join([os.path.relpath(sys.argv[0], ROOT)] + sys.argv[1:]),

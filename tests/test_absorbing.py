@@ -1,12 +1,12 @@
 """DAC's absorbing states (`--termination-remedy absorbing` of rile.py, gail.py, airl.py, gaifo.py): the
 shared `absorbing` block (tested through rile.py; test_shared_blocks keeps the copies identical) and
-the SAC block's handling of the absorbing state (tested through expert.py, the reference copy)."""
+the SAC block's handling of the absorbing state (tested through gail.py, the reference copy)."""
 
 import numpy as np
 import pytest
 import torch
 
-import expert
+import gail
 import rile
 
 OBS, ACT = 3, 2
@@ -17,20 +17,20 @@ def test_store_sends_terminations_to_the_absorbing_state():
     s, a, s2 = np.array([1.0, 2, 3]), np.array([0.5, -0.5]), np.array([4.0, 5, 6])
     rile.store(rb, s, a, s2, 7.0, False, True, [0.1], [0.9])  # an ordinary step (or a truncation)
     rile.store(rb, s, a, s2, 8.0, True, True, [0.2], [0.9])  # a termination: two rows
-    obs, actions, next_obs, rewards, terms = rb.split(rb.storage[:rb.size])
+    obs, actions, next_obs, rewards, terms, extra = rb.batch(torch.arange(rb.size))
     s_abs = torch.tensor([0.0, 0, 0, 1])
     assert rb.size == 3 and not terms.any()  # nothing is terminal any more
     assert torch.equal(obs[0], torch.tensor([1.0, 2, 3, 0])) and torch.equal(next_obs[0], torch.tensor([4.0, 5, 6, 0]))
     assert torch.equal(obs[1], torch.tensor([1.0, 2, 3, 0])) and torch.equal(next_obs[1], s_abs)
     assert rewards[1] == 8.0 and torch.equal(actions[1], torch.tensor([0.5, -0.5]))
     assert torch.equal(obs[2], s_abs) and torch.equal(next_obs[2], s_abs) and torch.equal(actions[2], torch.zeros(ACT))
-    assert rewards[2] == 0.0 and torch.equal(rb.extra(rb.storage[:3]).squeeze(-1), torch.tensor([0.1, 0.2, 0.9]))
+    assert rewards[2] == 0.0 and torch.equal(extra.squeeze(-1), torch.tensor([0.1, 0.2, 0.9]))
 
 
 def test_store_without_absorbing_keeps_the_termination():
     rb = rile.ReplayBuffer(OBS, ACT, 10, "cpu")
     rile.store(rb, np.ones(OBS), np.zeros(ACT), np.full(OBS, 2.0), 1.0, True, False)
-    obs, _, next_obs, _, terms = rb.split(rb.storage[:rb.size])
+    obs, _, next_obs, _, terms, _ = rb.batch(torch.arange(rb.size))
     assert rb.size == 1 and terms[0] == 1.0 and torch.equal(next_obs[0], torch.full((OBS,), 2.0))
 
 
@@ -46,7 +46,7 @@ def test_expert_data_gets_the_same_treatment_as_the_agents():
     for i in range(n):
         rile.store(rb, demo["obs"][i].numpy(), demo["actions"][i].numpy(), demo["next_obs"][i].numpy(), 0.0,
                    bool(demo["terminations"][i]), True)
-    obs, actions, next_obs, _, terms = rb.split(rb.storage[:rb.size])
+    obs, actions, next_obs, _, terms, _ = rb.batch(torch.arange(rb.size))
     as_rows = lambda o, a, o2, t: sorted(map(tuple, torch.cat([o, a, o2, t[:, None]], 1).tolist()))
     assert len(out["obs"]) == n + 2 and not out["terminations"].any()
     assert as_rows(out["obs"], out["actions"], out["next_obs"], out["terminations"]) == as_rows(obs, actions, next_obs, terms)
@@ -54,8 +54,8 @@ def test_expert_data_gets_the_same_treatment_as_the_agents():
 
 def sac(absorbing, autotune=False):
     torch.manual_seed(0)
-    args = expert.Args(hidden_dim=16, autotune=autotune)
-    return expert.SAC(OBS + absorbing, ACT, -np.ones(ACT), np.ones(ACT), args, "cpu", absorbing=absorbing)
+    args = gail.Args(hidden_dim=16, autotune=autotune)
+    return gail.SAC(OBS + absorbing, ACT, -np.ones(ACT), np.ones(ACT), args, "cpu", absorbing=absorbing)
 
 
 def test_actor_never_sees_the_indicator_and_acts_zero_at_the_absorbing_state():

@@ -1,5 +1,5 @@
-"""bc.py: the loss at and near the action bounds, the held-out split, a short run, and its actor as a
-valid checkpoint for the other scripts."""
+"""bc.py: the loss at and near the action bounds, the held-out split, a short run, its actor as a
+valid checkpoint for the other scripts, and a resumed run that goes on exactly as an uninterrupted one."""
 
 import json
 
@@ -53,3 +53,17 @@ def test_end_to_end_and_the_actor_is_a_project_checkpoint(run, tmp_path):
     out = run("expert.py", "--env-id", "InvertedPendulum-v4", "--record-from", "runs/b/actor_best.pt", "--num-demos", "2",
               "--demo-path", "demos.npz").stdout  # BC's actor records demonstrations like any expert
     assert "recorded 2 episodes" in out
+
+
+def test_resumed_run_equals_an_uninterrupted_one(run, tmp_path):
+    common = ["--env-id", "InvertedPendulum-v4", "--eval-freq", "100", "--eval-episodes", "2", "--hidden-dim", "32",
+              "--num-expert-trajs", "3", "--expert-path", str(ROOT / "experts/InvertedPendulum-v4.npz")]
+    run("bc.py", *common, "--total-timesteps", "300", "--run-name", "whole")
+    run("bc.py", *common, "--total-timesteps", "200", "--run-name", "split")
+    out = run("bc.py", "--resume", "runs/split", "--total-timesteps", "300").stdout
+    assert "resumed runs/split at step 200" in out
+    results = {name: json.loads((tmp_path / f"runs/{name}/results.json").read_text()) for name in ("whole", "split")}
+    assert [e["step"] for e in results["split"]["evals"]] == [100, 200, 300] and results["split"]["finished"]
+    assert results["split"]["evals"] == results["whole"]["evals"]
+    actors = {name: torch.load(tmp_path / f"runs/{name}/actor.pt", weights_only=True)["actor"] for name in ("whole", "split")}
+    assert all(torch.equal(actors["whole"][k], actors["split"][k]) for k in actors["whole"])

@@ -52,4 +52,5 @@ def test_end_to_end_counts_every_env_step(run, tmp_path):
     assert "then 2 iterations of 150 env steps: 900 env steps in all" in out
     results = json.loads((tmp_path / "runs/b/results.json").read_text())
     assert results["finished"] and [e["step"] for e in results["evals"]] == [600, 750, 900]
+    assert [e["iteration"] for e in results["evals"]] == [0, 1, 2] and results["config"]["total_timesteps"] == 900
     assert (tmp_path / "runs/b/inverse_model.pt").exists()

@@ -65,7 +65,7 @@ def test_d_is_a_probability_that_learns_which_class_is_the_expert():
         metrics = d.update(expert_x, agent_x)
     d.num_draws = 16  # average the single-draw estimate for the check
     assert d.prob(expert_x).mean() > 0.9 and d.prob(agent_x).mean() < 0.1
-    assert metrics[2] > metrics[3]  # logged D(expert) > D(agent)
+    assert metrics["disc/expert_prob"] > metrics["disc/policy_prob"]  # logged D(expert) > D(agent)
     # the logit is the difference of the two labels' denoising errors
     torch.manual_seed(3)
     t, noise = drail_disc.antithetic_timesteps(64, 100, "cpu"), torch.randn(64, 3)
@@ -87,7 +87,7 @@ def test_drail_rile_gives_the_trainer_rile_py_reward(monkeypatch):
     for i in range(10):
         rb.add(np.full(2, i), np.zeros(1), np.full(2, i + 1), 0.0, False, extra=[0.5])
     seen = {}
-    monkeypatch.setattr(trainer, "update", lambda *b: seen.update(b=b) or torch.zeros(6))
+    monkeypatch.setattr(trainer, "update", lambda *b, prefix: seen.update(b=b) or {prefix + "qf_loss": torch.tensor(0.0)})
     expert = {k: torch.zeros(5, n) for k, n in (("obs", 2), ("actions", 1), ("next_obs", 2))} | {"terminations": torch.zeros(5)}
     state = {"frozen_at": None, "reward_only": False, "trainer_updates": 0, "critic_loss_ema": torch.tensor(0.0)}
     drail_disc.rile_update(student, trainer, d, rb, expert, args, state)
@@ -108,7 +108,7 @@ def test_end_to_end(run, tmp_path, variant):
     results = json.loads((tmp_path / "runs/d/results.json").read_text())
     assert results["finished"] and [e["step"] for e in results["evals"]] == [200, 400]
     ckpt = torch.load(tmp_path / "runs/d/checkpoint.pt", weights_only=False)
-    assert ckpt["disc_optimizer"]["state"] and (ckpt["trainer_updates"] > 0) == (variant == "rile")
+    assert ckpt["disc_optimizer"]["state"] and (ckpt["rile"]["trainer_updates"] > 0) == (variant == "rile")
     absorbing = variant == "rile"  # the default; DRAIL-GAIL ran with none
     assert ckpt["disc"]["inp.weight"].shape[1] == 4 + absorbing + 1 + drail_disc.DiffusionDiscriminator.LABEL_DIM
     storage = ckpt["replay_buffer"]["storage"]

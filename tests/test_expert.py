@@ -133,7 +133,9 @@ def test_update_soft_updates_the_targets_once():
     metrics = agent.update(*batch)
     for old, online, new in zip(old_target, agent.qf.parameters(), agent.qf_target.parameters()):
         assert torch.allclose(new, 0.9 * old + 0.1 * online, atol=1e-6)
-    assert metrics.shape == (len(expert.METRIC_NAMES),) and torch.isfinite(metrics).all()
+    names = ("qf_loss", "qf_values", "actor_loss", "alpha_loss", "alpha", "entropy")
+    assert sorted(metrics) == sorted(f"losses/{name}" for name in names)
+    assert all(value.shape == () and torch.isfinite(value) for value in metrics.values())
 
 
 def test_replay_buffer_rows_round_trip():
@@ -141,10 +143,11 @@ def test_replay_buffer_rows_round_trip():
     for i in range(6):  # wraps around
         rb.add(np.full(3, i), np.full(2, -i), np.full(3, i + 0.5), float(i), i % 2 == 1)
     assert rb.size == 4 and rb.pos == 2
-    obs, act, next_obs, rew, term = rb.split(rb.storage)
+    obs, act, next_obs, rew, term, extra = rb.batch(torch.arange(4))
     assert obs[:, 0].tolist() == [4, 5, 2, 3] and act[:, 1].tolist() == [-4, -5, -2, -3]
     assert next_obs[:, 2].tolist() == [4.5, 5.5, 2.5, 3.5] and term.tolist() == [0, 1, 0, 1]
-    assert rb.sample(16).shape == (16, 3 + 2 + 3 + 2)
+    assert rew.tolist() == [4, 5, 2, 3] and extra.shape == (4, 0)
+    assert [tuple(x.shape) for x in rb.sample(16)] == [(16, 3), (16, 2), (16, 3), (16,), (16,), (16, 0)]
 
 
 def test_replay_buffer_recent_window_and_extra_columns():
@@ -152,12 +155,12 @@ def test_replay_buffer_recent_window_and_extra_columns():
     for i in range(15):  # wraps: rows hold 5..14, the last three added are 12, 13, 14
         rb.add([i], [0.0], [i + 1], 0.0, False, extra=[i, -i])
     torch.manual_seed(0)
-    recent = rb.split(rb.sample(500, recent=3))[0].flatten()
+    recent = rb.sample(500, recent=3).obs.flatten()
     assert set(recent.tolist()) == {12.0, 13.0, 14.0}
-    assert set(rb.split(rb.sample(2000))[0].flatten().tolist()) == set(map(float, range(5, 15)))
-    assert set(rb.split(rb.sample(100, recent=50))[0].flatten().tolist()) <= set(map(float, range(5, 15)))
-    rows = rb.sample(4)
-    assert torch.equal(rb.extra(rows)[:, 0], rows[:, 0]) and torch.equal(rb.extra(rows)[:, 1], -rows[:, 0])
+    assert set(rb.sample(2000).obs.flatten().tolist()) == set(map(float, range(5, 15)))
+    assert set(rb.sample(100, recent=50).obs.flatten().tolist()) <= set(map(float, range(5, 15)))
+    batch = rb.sample(4)
+    assert torch.equal(batch.extra[:, 0], batch.obs[:, 0]) and torch.equal(batch.extra[:, 1], -batch.obs[:, 0])
 
 
 # ---------------------------------------------------------------- the training script end to end
@@ -167,6 +170,14 @@ def load_ckpt(tmp_path, run_name):
     return torch.load(tmp_path / "runs" / run_name / "checkpoint.pt", map_location="cpu", weights_only=False)
 
 
+def stored(tmp_path, run_name, obs_dim, act_dim):
+    """Every transition in the replay buffer of a run's checkpoint, in the order they were added, as a Batch."""
+    state = load_ckpt(tmp_path, run_name)["replay_buffer"]
+    rb = expert.ReplayBuffer(obs_dim, act_dim, state["size"], "cpu")
+    rb.load_state_dict(state)
+    return rb.batch(torch.arange(rb.size))
+
+
 def test_end_to_end_run_reaches_updates_and_records_demos(run, tmp_path):
     out = run("expert.py", "--env-id", "InvertedPendulum-v4", "--total-timesteps", "600", "--learning-starts", "200",
               "--eval-freq", "300", "--run-name", "e2e", "--num-demos", "2", *FAST).stdout
@@ -174,9 +185,11 @@ def test_end_to_end_run_reaches_updates_and_records_demos(run, tmp_path):
     assert [e["step"] for e in results["evals"]] == [300, 600] and results["finished"]
     assert results["machine"]["torch"] == torch.__version__ and results["config"]["env_id"] == "InvertedPendulum-v4"
     ckpt = load_ckpt(tmp_path, "e2e")
-    assert ckpt["global_step"] == 600 and ckpt["replay_buffer"]["size"] == 600
-    assert ckpt["q_optimizer"]["state"], "the critics' optimiser never stepped"
+    assert ckpt["step"] == 600 and ckpt["replay_buffer"]["size"] == 600
+    assert ckpt["agent"]["q_optimizer"]["state"], "the critics' optimiser never stepped"
     assert (tmp_path / "runs/e2e/actor.pt").exists() and "recorded 2 episodes" in out
+    best = torch.load(tmp_path / "runs/e2e/actor_best.pt", weights_only=True)
+    assert best["eval_return"] == max(e["mean"] for e in results["evals"])
     env = expert.make_env("InvertedPendulum-v4", 0)
     demos = expert.load_demonstrations(str(tmp_path / "experts/InvertedPendulum-v4.npz"), env)
     assert len(demos["episode_lengths"]) == 2 and demos["metadata"]["expert_training_steps"] == 600
@@ -187,7 +200,7 @@ def test_truncations_keep_bootstrapping_and_keep_the_true_next_obs(run, tmp_path
     # Pendulum-v1 never terminates: its episodes end by the 200-step time limit only
     run("expert.py", "--env-id", "Pendulum-v1", "--total-timesteps", "450", "--learning-starts", "100",
         "--eval-freq", "450", "--run-name", "pend", "--no-record-demos", *FAST)
-    obs, _, next_obs, _, term = expert.ReplayBuffer(3, 1, 450, "cpu").split(load_ckpt(tmp_path, "pend")["replay_buffer"]["storage"])
+    obs, _, next_obs, _, term, _ = stored(tmp_path, "pend", 3, 1)
     assert term.sum() == 0
     assert torch.equal(next_obs[:199], obs[1:200])  # within an episode
     assert not torch.equal(next_obs[199], obs[200])  # the truncated step keeps its true next obs, not the reset obs
@@ -196,7 +209,7 @@ def test_truncations_keep_bootstrapping_and_keep_the_true_next_obs(run, tmp_path
 def test_terminations_are_stored_where_episodes_end_early(run, tmp_path):
     run("expert.py", "--env-id", "InvertedPendulum-v4", "--total-timesteps", "300", "--learning-starts", "300",
         "--eval-freq", "300", "--run-name", "ip", "--no-record-demos", *FAST)
-    obs, _, next_obs, _, term = expert.ReplayBuffer(4, 1, 300, "cpu").split(load_ckpt(tmp_path, "ip")["replay_buffer"]["storage"])
+    obs, _, next_obs, _, term, _ = stored(tmp_path, "ip", 4, 1)
     ends = torch.nonzero(term[:-1]).flatten()
     assert len(ends) > 5  # random actions drop the pole within a few dozen steps
     continuing = torch.ones(299, dtype=torch.bool)
@@ -217,7 +230,7 @@ def test_interrupted_run_resumes_and_its_curve_continues(tmp_path):
     proc.send_signal(signal.SIGTERM)
     out, _ = proc.communicate(timeout=60)
     assert proc.returncode == 128 + signal.SIGTERM and "checkpoint saved" in out
-    stopped_at = load_ckpt(tmp_path, "int")["global_step"]
+    stopped_at = load_ckpt(tmp_path, "int")["step"]
     assert 200 <= stopped_at < 100000
     proc = subprocess.run(cmd + ["--resume", "runs/int", "--total-timesteps", str(stopped_at + 250)], cwd=tmp_path,
                           capture_output=True, text=True, timeout=120)
@@ -227,7 +240,7 @@ def test_interrupted_run_resumes_and_its_curve_continues(tmp_path):
     steps = [e["step"] for e in final["evals"]]
     assert final["finished"] and steps == list(range(100, stopped_at + 1, 100)) + [
         s for s in range(stopped_at + 1, stopped_at + 251) if s % 100 == 0 or s == stopped_at + 250]
-    assert load_ckpt(tmp_path, "int")["global_step"] == stopped_at + 250
+    assert load_ckpt(tmp_path, "int")["step"] == stopped_at + 250
 
 
 def test_same_seed_same_result_on_cpu(run, tmp_path):
@@ -250,8 +263,7 @@ def demo_file(tmp_path_factory):
     torch.manual_seed(0)
     env = expert.make_env("InvertedPendulum-v4", 0)
     actor = expert.Actor(4, 1, env.action_space.low, env.action_space.high, 16)
-    act = expert.make_act_fn(actor, 4, "cpu", cudagraphs=False)
-    demos, _ = expert.record_demonstrations(act, "InvertedPendulum-v4", 3, seed=7)
+    demos, _ = expert.record_demonstrations(actor.act, "InvertedPendulum-v4", 3, seed=7)
     path = tmp_path_factory.mktemp("demos") / "InvertedPendulum-v4.npz"
     expert.save_demonstrations(str(path), demos, {"env_id": "InvertedPendulum-v4", "selection": "test"})
     return path, demos
@@ -285,9 +297,8 @@ def test_demonstrations_num_trajs_keeps_the_first_episodes(demo_file):
 def test_demonstrations_are_seeded():
     env_id = "InvertedPendulum-v4"
     actor = expert.Actor(4, 1, -np.ones(1) * 3, np.ones(1) * 3, 16)
-    act = expert.make_act_fn(actor, 4, "cpu", cudagraphs=False)
-    a, b = (expert.record_demonstrations(act, env_id, 2, seed=5)[0] for _ in range(2))
-    c, _ = expert.record_demonstrations(act, env_id, 2, seed=6)
+    a, b = (expert.record_demonstrations(actor.act, env_id, 2, seed=5)[0] for _ in range(2))
+    c, _ = expert.record_demonstrations(actor.act, env_id, 2, seed=6)
     assert np.array_equal(a["observations"], b["observations"])
     assert not np.array_equal(a["observations"][0], c["observations"][0])
 
@@ -298,7 +309,7 @@ def test_full_episodes_only_discards_falls_and_records_every_try():
     env_id = "InvertedPendulum-v4"
     torch.manual_seed(3)
     actor = expert.Actor(4, 1, -np.ones(1) * 3, np.ones(1) * 3, 16)
-    act = expert.make_act_fn(actor, 4, "cpu", cudagraphs=False)
+    act = actor.act
     original = expert.make_env
     expert.make_env = lambda env_id, seed, render_mode=None: gym.wrappers.TimeLimit(
         gym.make(env_id).unwrapped, max_episode_steps=7)
@@ -362,8 +373,8 @@ def test_unknown_env_id_is_one_clear_line(run):
 
 def test_actor_of_another_env_and_missing_checkpoint(run, tmp_path):
     env = expert.make_env("InvertedPendulum-v4", 0)
-    expert.save_actor(str(tmp_path / "ip.pt"), expert.Actor(4, 1, env.action_space.low, env.action_space.high, 16),
-                      "InvertedPendulum-v4", 4, 1, 16)
+    actor = expert.Actor(4, 1, env.action_space.low, env.action_space.high, 16)
+    torch.save(expert.actor_file(actor, "InvertedPendulum-v4"), tmp_path / "ip.pt")
     proc = run("expert.py", "--env-id", "Hopper-v4", "--record-from", "ip.pt", check=False)
     assert proc.returncode != 0 and "was saved for InvertedPendulum-v4" in proc.stderr and "Traceback" not in proc.stderr
     proc = run("expert.py", "--resume", "runs/none", check=False)
@@ -394,7 +405,8 @@ def test_resume_from_a_checkpoint_without_its_replay_buffer(run, tmp_path):
     del ckpt["replay_buffer"]
     torch.save(ckpt, path)
     out = run("expert.py", *common, "--resume", "runs/slim", "--total-timesteps", "500").stdout
-    assert "holds no replay buffer" in out and "resumed runs/slim at step 200 (0 transitions" in out
+    assert "holds no replay buffer" in out and "resumed runs/slim at step 200" in out
     final = torch.load(path, weights_only=False)
-    assert final["global_step"] == 500 and final["replay_buffer"]["size"] == 300
-    assert final["q_optimizer"]["state"][0]["step"].item() > ckpt["q_optimizer"]["state"][0]["step"].item()
+    assert final["step"] == 500 and final["replay_buffer"]["size"] == 300  # refilled from empty: 500 - 200 rows
+    q_steps = lambda c: c["agent"]["q_optimizer"]["state"][0]["step"].item()
+    assert q_steps(final) > q_steps(ckpt)

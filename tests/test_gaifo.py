@@ -28,8 +28,8 @@ def setup(monkeypatch):
              "terminations": np.zeros(10, bool)}
     expert = gaifo.expert_tensors(demos, args, -np.ones(1), np.ones(1), "cpu")
     seen = {}
-    monkeypatch.setattr(disc, "update", lambda e, p: seen.update(expert_x=e, policy_x=p) or torch.zeros(4))
-    monkeypatch.setattr(agent, "update", lambda *b: seen.update(batch=b) or torch.zeros(6))
+    monkeypatch.setattr(disc, "update", lambda e, p: seen.update(expert_x=e, policy_x=p) or {})
+    monkeypatch.setattr(agent, "update", lambda *b, prefix: seen.update(batch=b) or {})
     return args, agent, disc, rb, expert, seen
 
 

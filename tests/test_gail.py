@@ -35,9 +35,9 @@ def test_rewards_are_relabelled_from_the_current_discriminator(monkeypatch):
     expert = {"obs": torch.ones(10, 3), "actions": torch.zeros(10, 2)}
     seen = []
 
-    def capture(obs, actions, next_obs, rewards, terminations):
+    def capture(obs, actions, next_obs, rewards, terminations, prefix):
         seen.append((rewards.clone(), disc(torch.cat([obs, actions], -1)).detach()))
-        return torch.zeros(6)
+        return {}
 
     monkeypatch.setattr(agent, "update", capture)
     gail.gail_update(agent, disc, rb, expert, args)
@@ -60,7 +60,7 @@ def test_end_to_end(run, tmp_path):
     assert results["finished"] and [e["step"] for e in results["evals"]] == [250, 500]
     assert results["expert_return"] == pytest.approx(1000.0) and results["evals"][-1]["normalized"] is not None
     ckpt = torch.load(tmp_path / "runs/g/checkpoint.pt", weights_only=False)
-    assert ckpt["disc_optimizer"]["state"] and ckpt["q_optimizer"]["state"]
+    assert ckpt["disc_optimizer"]["state"] and ckpt["agent"]["q_optimizer"]["state"]
     assert ckpt["disc"]["net.0.weight"].shape[1] == 4 + 1 + 1  # (s, indicator, a) of InvertedPendulum
     storage = ckpt["replay_buffer"]["storage"]
     assert len(storage) > 500 and (storage[:, 4] == 1).sum() == len(storage) - 500  # one absorbing row per fall

@@ -42,9 +42,12 @@ def test_loss_terms_by_hand(monkeypatch, value_loss):
     v = 2.0 + 0.1  # V(s) = Q - alpha log pi
     value = (v - y).mean() if value_loss == "value" else (1 - 0.9) * v
     chi2 = 1 / (4 * 0.5) * (r**2).mean()
-    got = dict(zip(["softq", "value", "chi2", "q_expert", "q_policy", "r_expert", "r_policy"], terms.tolist()))
-    assert got["softq"] == pytest.approx(softq) and got["value"] == pytest.approx(value) and got["chi2"] == pytest.approx(chi2)
-    assert got["r_expert"] == pytest.approx(r[2:].mean()) and got["r_policy"] == pytest.approx(r[:2].mean())
+    got = {name: term.item() for name, term in terms.items()}
+    assert got["losses/softq"] == pytest.approx(softq) and got["losses/value"] == pytest.approx(value)
+    assert got["losses/chi2"] == pytest.approx(chi2)
+    assert got["losses/q_expert"] == pytest.approx(2.0) and got["losses/q_policy"] == pytest.approx(2.0)
+    assert got["reward/implicit_expert"] == pytest.approx(r[2:].mean())
+    assert got["reward/implicit_policy"] == pytest.approx(r[:2].mean())
     assert loss.item() == pytest.approx(softq + value + chi2)
 
 
@@ -63,9 +66,12 @@ def test_update_steps_the_critic_actor_and_target():
     args = iqlearn.Args(hidden_dim=8, value_loss="value", alpha=0.01)
     agent = iqlearn.IQLearn(2, 1, -np.ones(1), np.ones(1), args, "cpu")
     before = [p.clone() for p in agent.q_target.parameters()]
-    batch = lambda: (torch.randn(4, 2), torch.rand(4, 1), torch.randn(4, 2), torch.zeros(4))
-    metrics = agent.update(batch(), batch())
-    assert torch.isfinite(metrics).all() and len(metrics) == len(iqlearn.IQ_METRIC_NAMES)
+    policy = iqlearn.Batch(torch.randn(4, 2), torch.rand(4, 1), torch.randn(4, 2), torch.zeros(4), torch.zeros(4), torch.zeros(4, 0))
+    expert = {"obs": torch.randn(4, 2), "actions": torch.rand(4, 1), "next_obs": torch.randn(4, 2), "terminations": torch.zeros(4)}
+    metrics = agent.update(policy, expert)
+    assert set(metrics) == {"losses/critic", "losses/actor", "losses/softq", "losses/value", "losses/chi2", "losses/q_expert",
+                            "losses/q_policy", "reward/implicit_expert", "reward/implicit_policy"}
+    assert all(torch.isfinite(value) for value in metrics.values())
     for old, online, new in zip(before, agent.q.parameters(), agent.q_target.parameters()):
         assert torch.allclose(new, 0.995 * old + 0.005 * online, atol=1e-6)
 
@@ -89,4 +95,4 @@ def test_end_to_end_and_done_semantics(run, tmp_path, timeout_done):
     results = json.loads((tmp_path / "runs/iq/results.json").read_text())
     assert results["finished"] and [e["step"] for e in results["evals"]] == [650, 1300]
     ckpt = torch.load(tmp_path / "runs/iq/checkpoint.pt", weights_only=False)
-    assert ckpt["q_optimizer"]["state"] and ckpt["actor_optimizer"]["state"]
+    assert ckpt["q_optimizer"]["state"] and ckpt["actor_optimizer"]["state"] and ckpt["step"] == 1300

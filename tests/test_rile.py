@@ -36,6 +36,14 @@ def learners(args):
     return student, trainer, disc, rb, expert, state
 
 
+def recorder(seen: dict, name: str):
+    """A stand-in for SAC.update that records the batch it is given and returns a critic loss of 0."""
+    def update(*batch, prefix):
+        seen.setdefault(name, batch)
+        return {prefix + "qf_loss": torch.tensor(0.0)}
+    return update
+
+
 # ---------------------------------------------------------------- rewards
 
 
@@ -77,10 +85,10 @@ def test_update_relabels_the_student_batch_with_the_current_trainer(monkeypatch)
     student, trainer, disc, rb, expert, state = learners(args)
     seen = []
 
-    def capture(obs, actions, next_obs, rewards, terminations):  # the trainer as it is when the student learns
+    def capture(obs, actions, next_obs, rewards, terminations, prefix):  # the trainer as it is when the student learns
         expected = (1 + trainer.actor.deterministic(torch.cat([obs, actions], -1)).squeeze(-1)) / 2
         seen.append((rewards, expected.detach()))
-        return torch.zeros(6)
+        return {}
 
     monkeypatch.setattr(student, "update", capture)
     rile.rile_update(student, trainer, disc, rb, expert, args, state)
@@ -94,7 +102,7 @@ def test_trainer_transition_layout(monkeypatch):
     args = tiny_args(termination_remedy="none")
     student, trainer, disc, rb, expert, state = learners(args)
     seen = {}
-    monkeypatch.setattr(trainer, "update", lambda *batch: seen.setdefault("trainer", batch) and torch.zeros(6))
+    monkeypatch.setattr(trainer, "update", recorder(seen, "trainer"))
     torch.manual_seed(1)
     rile.rile_update(student, trainer, disc, rb, expert, args, state)
     obs_t, a_t, next_obs_t, r_t, terminated = seen["trainer"]
@@ -127,10 +135,12 @@ def test_freezing_stops_trainer_updates_and_only_those():
     rile.rile_update(student, trainer, disc, rb, expert, args, state)
     assert state["trainer_updates"] == 1
     state["frozen_at"] = 1
-    before = {name: params(m) for name, m in (("student", student), ("trainer", trainer), ("disc", disc))}
+    before = {name: params(m) for name, m in (("student", student.actor), ("student_qf", student.qf),
+                                              ("trainer", trainer.actor), ("trainer_qf", trainer.qf), ("disc", disc))}
     out = rile.rile_update(student, trainer, disc, rb, expert, args, state)
-    assert not changed(before["trainer"], trainer) and state["trainer_updates"] == 1 and "trainer" not in out
-    assert changed(before["student"], student.actor) or changed(before["student"], student.qf)
+    assert not changed(before["trainer"], trainer.actor) and not changed(before["trainer_qf"], trainer.qf)
+    assert state["trainer_updates"] == 1 and not any(key.startswith("losses/trainer_") for key in out)
+    assert changed(before["student"], student.actor) and changed(before["student_qf"], student.qf)
     assert changed(before["disc"], disc)
     state["reward_only"] = True  # covariate shift: only the student learns
     before_disc = params(disc)
@@ -143,8 +153,8 @@ def test_expert_fractions_put_that_share_of_expert_pairs_in_the_batches(monkeypa
     args = tiny_args(student_expert_fraction=fraction, trainer_expert_fraction=fraction)
     student, trainer, disc, rb, expert, state = learners(args)
     seen = {}
-    monkeypatch.setattr(student, "update", lambda *b: seen.setdefault("student", b) and torch.zeros(6))
-    monkeypatch.setattr(trainer, "update", lambda *b: seen.setdefault("trainer", b) and torch.zeros(6))
+    monkeypatch.setattr(student, "update", recorder(seen, "student"))
+    monkeypatch.setattr(trainer, "update", recorder(seen, "trainer"))
     rile.rile_update(student, trainer, disc, rb, expert, args, state)
     is_expert = seen["student"][0][:, 0] >= 100
     assert is_expert.sum().item() == round(fraction * args.batch_size) and is_expert[: int(is_expert.sum())].all()
@@ -216,7 +226,7 @@ def test_discriminator_learns_to_separate():
 def test_saved_reward_round_trip(tmp_path):
     args = tiny_args()
     student, trainer, disc, rb, expert, state = learners(args)
-    rile.save_reward(str(tmp_path / "reward.pt"), trainer, disc, args, OBS, ACT)
+    torch.save(rile.reward_file(trainer, disc, args, OBS, ACT), tmp_path / "reward.pt")
     _, trainer2, disc2, *_ = learners(tiny_args(seed=5))
     with torch.no_grad():
         for p in list(trainer2.actor.parameters()) + list(disc2.parameters()):
@@ -248,12 +258,12 @@ def test_end_to_end_every_update_path_then_covariate_shift(run, tmp_path):
     dynamics = json.loads((tmp_path / "runs/r/dynamics.json").read_text())
     assert [d["step"] for d in dynamics] == [400, 600] and dynamics[1]["rfdc"] is not None
     ckpt = torch.load(tmp_path / "runs/r/checkpoint.pt", weights_only=False)
-    assert ckpt["trainer_updates"] > 0 and ckpt["disc_optimizer"]["state"] and ckpt["trainer_q_optimizer"]["state"]
+    assert ckpt["rile"]["trainer_updates"] > 0 and ckpt["disc_optimizer"]["state"] and ckpt["trainer"]["q_optimizer"]["state"]
     out = run("rile.py", *TINY, "--total-timesteps", "400", "--run-name", "cs", "--reward-from", "runs/r/reward.pt",
               "--student-action-noise", "0.2").stdout
     assert "done: 400 steps" in out
     shifted = torch.load(tmp_path / "runs/cs/checkpoint.pt", weights_only=False)
-    assert shifted["trainer_updates"] == 0 and not shifted["disc_optimizer"]["state"]
+    assert shifted["rile"]["trainer_updates"] == 0 and not shifted["disc_optimizer"]["state"]
 
 
 def test_demonstrations_of_another_env_are_refused(run):
@@ -270,7 +280,7 @@ def test_resume_continues_the_run(run, tmp_path):
     results = json.loads((tmp_path / "runs/res/results.json").read_text())
     assert results["finished"] and [e["step"] for e in results["evals"]] == [300, 600]
     ckpt = torch.load(tmp_path / "runs/res/checkpoint.pt", weights_only=False)
-    assert ckpt["global_step"] == 600 and ckpt["replay_buffer"]["size"] == 600 and ckpt["trainer_updates"] == 400
+    assert ckpt["step"] == 600 and ckpt["replay_buffer"]["size"] == 600 and ckpt["rile"]["trainer_updates"] == 400
 
 
 def test_absorbing_states_end_to_end(run, tmp_path):
@@ -281,7 +291,7 @@ def test_absorbing_states_end_to_end(run, tmp_path):
     buf = torch.load(tmp_path / "runs/abs/checkpoint.pt", weights_only=False)["replay_buffer"]
     rb = rile.ReplayBuffer(5, 1, len(buf["storage"]), "cpu", extra_dim=1)
     rb.load_state_dict(buf)
-    obs, _, next_obs, _, terms = rb.split(rb.storage[:rb.size])
+    obs, _, next_obs, _, terms, _ = rb.batch(torch.arange(rb.size))
     n_absorbing = int((obs[:, -1] == 1).sum())
     assert n_absorbing > 0 and rb.size == 400 + n_absorbing and not terms.any()
     assert int((next_obs[:, -1] == 1).sum()) == 2 * n_absorbing  # the termination and the self-loop

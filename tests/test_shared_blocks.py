@@ -1,14 +1,18 @@
-"""The blocks every script copies (env, SAC, evaluation, results, checkpoint, actor io, demonstrations)
-must stay identical across scripts: a fix made in one copy and not the others fails here."""
+"""The blocks the scripts copy (env, actor, SAC, demonstrations, absorbing states, evaluation, the run's
+plumbing, the discriminator, GAIL's and RILe's updates) must stay identical across scripts, and appear in one
+canonical order: the method's blocks first, then the plumbing. A fix made in one copy and not the others
+fails here."""
 
 import re
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 BLOCK = re.compile(r"^# --- shared: (?P<name>[\w ]+) ---\n(?P<body>.*?)^# --- end shared: (?P=name) ---$", re.S | re.M)
-# expert.py holds the core blocks; every script holds those it needs
-REFERENCE = "expert.py"
-EXPECTED = {"env", "actor", "sac", "evaluation", "results", "checkpoint", "actor io", "demonstrations"}
+# gail.py holds every plumbing block; every script holds those it needs, in this order
+REFERENCE = "gail.py"
+ORDER = ["discriminator", "gail", "rile", "env", "actor", "sac", "demonstrations", "expert data", "absorbing",
+         "evaluation", "run"]
+SCRIPTS = ["expert.py", "gail.py", "rile.py", "airl.py", "gaifo.py", "iqlearn.py", "drail_disc.py", "bc.py", "bco.py"]
 
 
 def blocks(path: Path) -> dict:
@@ -19,17 +23,24 @@ def blocks(path: Path) -> dict:
     return found
 
 
-def test_reference_has_every_block():
-    assert set(blocks(ROOT / REFERENCE)) == EXPECTED
+def test_reference_has_every_plumbing_block():
+    assert set(blocks(ROOT / REFERENCE)) == set(ORDER) - {"rile"}
 
 
 def test_copies_are_identical():
-    """Every block, in every script that holds it, is the same text (expert.py's where it has one)."""
+    """Every block, in every script that holds it, is the same text (gail.py's where it has one)."""
     seen = {}
-    for path in [ROOT / REFERENCE] + [p for p in sorted(ROOT.glob("*.py")) if p.name != REFERENCE]:
-        for name, body in blocks(path).items():
-            first, first_body = seen.setdefault(name, (path.name, body))
-            assert body == first_body, f"shared block '{name}' of {path.name} differs from {first}'s"
+    for name in [REFERENCE] + [s for s in SCRIPTS if s != REFERENCE]:
+        for block, body in blocks(ROOT / name).items():
+            first, first_body = seen.setdefault(block, (name, body))
+            assert body == first_body, f"shared block '{block}' of {name} differs from {first}'s"
+
+
+def test_blocks_appear_in_the_canonical_order():
+    for name in SCRIPTS:
+        found = list(blocks(ROOT / name))
+        assert set(found) <= set(ORDER), f"{name}: unknown shared blocks {set(found) - set(ORDER)}"
+        assert found == sorted(found, key=ORDER.index), f"{name}: shared blocks in the order {found}, not {ORDER}"
 
 
 def test_block_pattern_detects_drift(tmp_path):
