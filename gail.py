@@ -189,17 +189,19 @@ def gail_reward(logits, form: str):
     raise ValueError(f"unknown reward form '{form}'; choose softplus, logit or log-d")
 
 
-def gail_update(agent: "SAC", disc: nn.Module, rb: "ReplayBuffer", expert: dict, args) -> dict:
-    """One SAC update on rewards from the current discriminator, then one discriminator update."""
+def gail_update(agent: "SAC", disc: nn.Module, rb: "ReplayBuffer", expert: dict, args, state_only: bool = False) -> dict:
+    """One SAC update on rewards from the current discriminator, then one discriminator update. D scores
+    pairs (s, a), or with `state_only` transitions (s, s') (GAIfO: gaifo.py, drail_disc.py --state-only)."""
+    seen = "next_obs" if state_only else "actions"  # what D sees beside s
     batch = rb.sample(args.batch_size)  # its env rewards are never used
     with torch.no_grad():
-        rewards = gail_reward(disc(torch.cat([batch.obs, batch.actions], -1)), args.reward_form)
+        rewards = gail_reward(disc(torch.cat([batch.obs, getattr(batch, seen)], -1)), args.reward_form)
     metrics = agent.update(batch.obs, batch.actions, batch.next_obs, rewards, batch.terminations, prefix="losses/")
     metrics.update({"reward/learned_mean": rewards.mean(), "reward/learned_std": rewards.std()})
     idx = torch.randint(0, len(expert["obs"]), (args.disc_batch_size,), device=expert["obs"].device)
     policy = rb.sample(args.disc_batch_size, recent=args.disc_buffer_size)
-    expert_x = torch.cat([expert["obs"][idx], expert["actions"][idx]], -1)
-    return metrics | disc.update(expert_x, torch.cat([policy.obs, policy.actions], -1))
+    expert_x = torch.cat([expert["obs"][idx], expert[seen][idx]], -1)
+    return metrics | disc.update(expert_x, torch.cat([policy.obs, getattr(policy, seen)], -1))
 # --- end shared: gail ---
 
 
@@ -588,7 +590,9 @@ class Run:
     their states, the RNG states and the run's progress."""
 
     def __init__(self, args, checkpoint: Optional[dict], stateful: dict, expert_return: Optional[float], device):
-        self.args, self.stateful, self.expert_return = args, stateful, expert_return
+        self.args, self.stateful = args, stateful
+        # None without it, or NaN: demonstrations without rewards
+        self.expert_return = expert_return if expert_return is not None and np.isfinite(expert_return) else None
         default_name = f"{args.env_id}__{args.exp_name}__{args.seed}__{int(time.time())}"
         self.name = checkpoint["run_name"] if checkpoint else (args.run_name or default_name)
         self.dir = os.path.join("runs", self.name)

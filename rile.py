@@ -275,11 +275,6 @@ def student_reward(trainer_actor, obs_t, remedy: str):
     return (1 + a_t) / 2 if remedy == "survival" else a_t
 
 
-def disc_input(obs, actions, next_obs, state_only: bool):
-    """What D scores: the pair (s, a), or from states only (--state-only) the transition (s, s'), as in GAIfO."""
-    return torch.cat([obs, next_obs if state_only else actions], -1)
-
-
 def trainer_input(obs, actions, next_obs, trainer_obs: str):
     """What the trainer observes, o_T: the student's pair (s, a_S) (paper), or its transition (s, s')."""
     return torch.cat([obs, next_obs if trainer_obs == "transition" else actions], -1)
@@ -317,12 +312,12 @@ def rile_update(student: "SAC", trainer: "SAC", disc: nn.Module, rb: "ReplayBuff
     metrics["reward/learned_mean"] = r_s.mean()
     if state["reward_only"]:
         return metrics
-    # discriminator: expert pairs against the most recent student pairs (transitions with --state-only)
+    # discriminator: expert pairs (s, a) against the most recent student pairs; transitions (s, s') with --state-only
+    seen = "next_obs" if args.state_only else "actions"  # what D sees beside s
     idx = torch.randint(0, len(expert["obs"]), (args.disc_batch_size,), device=expert["obs"].device)
     policy = rb.sample(args.disc_batch_size, recent=args.disc_buffer_size)
-    e = {k: v[idx] for k, v in expert.items()}
-    expert_x = disc_input(e["obs"], e.get("actions"), e["next_obs"], args.state_only)
-    metrics |= disc.update(expert_x, disc_input(*policy[:3], args.state_only))
+    expert_x = torch.cat([expert["obs"][idx], expert[seen][idx]], -1)
+    metrics |= disc.update(expert_x, torch.cat([policy.obs, getattr(policy, seen)], -1))
     if state["frozen_at"] is not None:
         return metrics
     # trainer: SAC on o_T = (s, a_S) or (s, s'), its stored action a_T, r_T from the current discriminator
@@ -334,7 +329,7 @@ def rile_update(student: "SAC", trainer: "SAC", disc: nn.Module, rb: "ReplayBuff
     with torch.no_grad():
         if n_expert:  # expert pairs were never acted on by the trainer: a fresh a_T for them
             a_t = torch.cat([trainer.actor.sample(obs_t[:n_expert])[0], a_t[n_expert:]])
-        r_t = trainer_reward(args.trainer_reward, disc.prob(disc_input(*batch[:3], args.state_only)), a_t.squeeze(-1))
+        r_t = trainer_reward(args.trainer_reward, disc.prob(torch.cat([batch.obs, getattr(batch, seen)], -1)), a_t.squeeze(-1))
         if args.trainer_obs == "transition":  # o_T' = (s', s''), s'' as the student went on
             next_obs_t = torch.cat([batch.next_obs, successor_next_obs(rb, idx, batch)], -1)
         else:  # o_T' = (s', a'_S), a'_S: the current student's
@@ -795,7 +790,9 @@ class Run:
     their states, the RNG states and the run's progress."""
 
     def __init__(self, args, checkpoint: Optional[dict], stateful: dict, expert_return: Optional[float], device):
-        self.args, self.stateful, self.expert_return = args, stateful, expert_return
+        self.args, self.stateful = args, stateful
+        # None without it, or NaN: demonstrations without rewards
+        self.expert_return = expert_return if expert_return is not None and np.isfinite(expert_return) else None
         default_name = f"{args.env_id}__{args.exp_name}__{args.seed}__{int(time.time())}"
         self.name = checkpoint["run_name"] if checkpoint else (args.run_name or default_name)
         self.dir = os.path.join("runs", self.name)

@@ -163,3 +163,46 @@ def test_what_needs_expert_actions_is_refused(run, flags, message):
 def test_trainer_on_transitions_needs_state_only(run):
     proc = run("rile.py", *TINY, "--expert-path", str(PENDULUM), "--trainer-obs", "transition", check=False)
     assert proc.returncode != 0 and "--trainer-obs transition goes with --state-only" in proc.stderr
+
+
+# ---------------------------------------------------------------- the other state-only methods, and writing such a file
+
+
+def test_expert_writes_a_state_only_file_that_state_only_methods_read(run, tmp_path):
+    out = run("expert.py", "--env-id", "InvertedPendulum-v4", "--record-from", str(ROOT / "experts/InvertedPendulum-v4-actor.pt"),
+              "--num-demos", "2", "--no-actions", "--demo-path", "states.npz").stdout
+    assert "recorded 2 episodes" in out
+    with np.load(tmp_path / "states.npz") as f:
+        assert "actions" not in f.files and json.loads(str(f["metadata"]))["state_only"]
+    run("gaifo.py", "--env-id", "InvertedPendulum-v4", "--expert-path", "states.npz", "--num-expert-trajs", "2",
+        "--total-timesteps", "300",
+        "--learning-starts", "200", "--eval-freq", "300", "--eval-episodes", "1", "--hidden-dim", "32", "--batch-size", "32")
+    run("bco.py", "--env-id", "InvertedPendulum-v4", "--expert-path", "states.npz", "--num-expert-trajs", "2",
+        "--pre-demo-steps", "200",
+        "--total-timesteps", "300", "--inverse-steps", "50", "--bc-steps", "50", "--inverse-steps-per-iteration", "20",
+        "--bc-steps-per-iteration", "20", "--hidden-dim", "32", "--eval-episodes", "1")
+    for script in ("gail.py", "airl.py", "iqlearn.py", "bc.py"):  # they need the expert's actions
+        proc = run(script, "--env-id", "InvertedPendulum-v4", "--expert-path", "states.npz", "--total-timesteps", "10",
+                   check=False)
+        assert proc.returncode != 0 and "hold states only, and this method needs actions" in proc.stderr, script
+        assert "Traceback" not in proc.stderr
+
+
+DRAIL = ["--env-id", "InvertedPendulum-v4", "--learning-starts", "200", "--total-timesteps", "400", "--eval-freq", "400",
+         "--eval-episodes", "1", "--hidden-dim", "32", "--trainer-hidden-dim", "32", "--batch-size", "32",
+         "--trainer-batch-size", "32", "--disc-batch-size", "16", "--disc-hidden-dim", "32", "--diffusion-steps", "100",
+         "--num-expert-trajs", "2", "--trainer-freeze-min-updates", "100", "--trainer-freeze-threshold", "1e9",
+         "--state-only"]
+
+
+@pytest.mark.parametrize("variant", [["--student-reward", "gail"], ["--student-reward", "rile"],
+                                     ["--student-reward", "rile", "--trainer-obs", "transition"]])
+def test_drail_from_states_only(run, tmp_path, variant):
+    states = str(without_actions(PENDULUM, tmp_path / "states.npz"))
+    out = run("drail_disc.py", *DRAIL, "--expert-path", states, *variant, "--run-name", "d").stdout
+    assert "done: 400 steps" in out
+    if "rile" in variant:
+        assert "trainer frozen at step 300" in out
+    disc = torch.load(tmp_path / "runs/d/disc.pt", weights_only=False)["disc"]
+    half = len(disc["shift"]) // 2  # x = (s, s'), both halves standardised with the expert's state statistics
+    assert len(disc["shift"]) == 2 * 5 and torch.equal(disc["shift"][:half], disc["shift"][half:])
