@@ -28,6 +28,10 @@ Implementation choices and deviations
    normalisation layers, so train and eval mode coincide. No gradient penalty (DRAIL's default).
 5. Discriminator: Adam lr 1e-4, 128 expert + 128 agent pairs per update, one update per env step, on
    the newest `--disc-buffer-size` transitions. Everything else as in rile.py / gail.py.
+6. From states only (`--state-only`): x0 = (s, s'), both halves standardised with the expert's state
+   statistics, in both variants (DRAIL-GAIL becomes a diffusion GAIfO); the demonstrations' actions are
+   never loaded. DRAIL-RILe's trainer observes (s, a_S) or, with `--trainer-obs transition`, (s, s'), as in
+   rile.py (its choice 9), with the same refusals.
 
 Logged metrics (both variants; trainer_* in DRAIL-RILe only): charts/episodic_return, charts/SPS, eval/return,
 eval/normalized_return, losses/{student,trainer}_{qf_loss,qf_values,actor_loss,alpha_loss,alpha,entropy},
@@ -148,6 +152,8 @@ class Args:
     """freeze when the moving average (0.99) of the trainer's critic loss falls below this"""
     trainer_freeze_min_updates: int = 10_000
     """never freeze before this many trainer updates"""
+    trainer_obs: Literal["state-action", "transition"] = "state-action"
+    """rile: what the trainer observes: the student's (s, a_S) (paper), or its transition (s, s') (needs --state-only)"""
 
     # Diffusion discriminator arguments
     disc_hidden_dim: int = 1024
@@ -170,6 +176,9 @@ class Args:
     """demonstrations (default: experts/<env_id>.npz)"""
     num_expert_trajs: int = 25
     """use the first this many demonstration episodes"""
+    state_only: bool = False
+    """imitate from states only: the demonstrations' actions are not used (none needed) and the discriminator
+    scores transitions (s, s') instead of pairs (s, a)"""
     expert_action_noise: float = 0.0
     """std of Gaussian noise added to the expert's actions (noise-robustness experiment)"""
     expert_state_noise: float = 0.0
@@ -202,20 +211,17 @@ class DiffusionDiscriminator(nn.Module):
 
     LABEL_DIM = 10
 
-    def __init__(self, obs_dim: int, act_dim: int, hidden_dim: int, num_steps: int, lr: float, obs_mean, obs_std,
+    def __init__(self, in_dim: int, hidden_dim: int, num_steps: int, lr: float, x_mean, x_std,
                  shared_noise: bool = False, num_draws: int = 1):
         super().__init__()
-        in_dim = obs_dim + act_dim
         self.num_steps, self.shared_noise, self.num_draws = num_steps, shared_noise, num_draws
         self.inp = nn.Linear(in_dim + self.LABEL_DIM, hidden_dim)
         self.hidden = nn.ModuleList([nn.Linear(hidden_dim, hidden_dim) for _ in range(2)])
         self.embed = nn.ModuleList([nn.Embedding(num_steps, hidden_dim) for _ in range(3)])
         self.out = nn.Linear(hidden_dim, in_dim)
         self.register_buffer("alpha_bar", cosine_alpha_bar(num_steps))
-        shift = torch.cat([torch.as_tensor(obs_mean, dtype=torch.float32), torch.zeros(act_dim)])
-        scale = torch.cat([torch.as_tensor(obs_std, dtype=torch.float32).clamp_min(1e-3), torch.ones(act_dim)])
-        self.register_buffer("shift", shift)
-        self.register_buffer("scale", scale)
+        self.register_buffer("shift", torch.as_tensor(x_mean, dtype=torch.float32))  # x0 = (x - shift) / scale
+        self.register_buffer("scale", torch.as_tensor(x_std, dtype=torch.float32).clamp_min(1e-3))
         self.optimizer = torch.optim.Adam(self.parameters(), lr=lr)
 
     def eps_model(self, x_t, label, t):
@@ -277,17 +283,19 @@ def gail_reward(logits, form: str):
     raise ValueError(f"unknown reward form '{form}'; choose softplus, logit or log-d")
 
 
-def gail_update(agent: "SAC", disc: nn.Module, rb: "ReplayBuffer", expert: dict, args) -> dict:
-    """One SAC update on rewards from the current discriminator, then one discriminator update."""
+def gail_update(agent: "SAC", disc: nn.Module, rb: "ReplayBuffer", expert: dict, args, state_only: bool = False) -> dict:
+    """One SAC update on rewards from the current discriminator, then one discriminator update. D scores
+    pairs (s, a), or with `state_only` transitions (s, s') (GAIfO: gaifo.py, drail_disc.py --state-only)."""
+    seen = "next_obs" if state_only else "actions"  # what D sees beside s
     batch = rb.sample(args.batch_size)  # its env rewards are never used
     with torch.no_grad():
-        rewards = gail_reward(disc(torch.cat([batch.obs, batch.actions], -1)), args.reward_form)
+        rewards = gail_reward(disc(torch.cat([batch.obs, getattr(batch, seen)], -1)), args.reward_form)
     metrics = agent.update(batch.obs, batch.actions, batch.next_obs, rewards, batch.terminations, prefix="losses/")
     metrics.update({"reward/learned_mean": rewards.mean(), "reward/learned_std": rewards.std()})
     idx = torch.randint(0, len(expert["obs"]), (args.disc_batch_size,), device=expert["obs"].device)
     policy = rb.sample(args.disc_batch_size, recent=args.disc_buffer_size)
-    expert_x = torch.cat([expert["obs"][idx], expert["actions"][idx]], -1)
-    return metrics | disc.update(expert_x, torch.cat([policy.obs, policy.actions], -1))
+    expert_x = torch.cat([expert["obs"][idx], expert[seen][idx]], -1)
+    return metrics | disc.update(expert_x, torch.cat([policy.obs, getattr(policy, seen)], -1))
 # --- end shared: gail ---
 
 
@@ -310,11 +318,25 @@ def trainer_reward(name: str, d, a_t):
     raise ValueError(f"unknown trainer reward '{name}'; choose from {TRAINER_REWARDS}")
 
 
-def student_reward(trainer_actor, obs, actions, remedy: str):
-    """r_S: the trainer's deterministic action on (s, a_S); with remedy 'survival', mapped to [0, 1]."""
+def student_reward(trainer_actor, obs_t, remedy: str):
+    """r_S: the trainer's deterministic action on its observation o_T; with remedy 'survival', mapped to [0, 1]."""
     with torch.no_grad():
-        a_t = trainer_actor.deterministic(torch.cat([obs, actions], -1)).squeeze(-1)
+        a_t = trainer_actor.deterministic(obs_t).squeeze(-1)
     return (1 + a_t) / 2 if remedy == "survival" else a_t
+
+
+def trainer_input(obs, actions, next_obs, trainer_obs: str):
+    """What the trainer observes, o_T: the student's pair (s, a_S) (paper), or its transition (s, s')."""
+    return torch.cat([obs, next_obs if trainer_obs == "transition" else actions], -1)
+
+
+def successor_next_obs(rb: "ReplayBuffer", idx, batch: "Batch"):
+    """s'' for the trainer's next observation (s', s'') with --trainer-obs transition: the next_obs of the
+    row stored after each sampled one where that row continues the episode (its obs is s'); at an episode's
+    last stored step (a time limit) s' itself. With absorbing states a termination continues to the loop."""
+    following = rb.batch((idx + 1) % rb.capacity)
+    continues = (following.obs == batch.next_obs).all(-1, keepdim=True) & ((idx + 1) % rb.capacity != rb.pos)[:, None]
+    return torch.where(continues, following.next_obs, batch.next_obs)
 
 
 def mix_expert(batch: "Batch", expert: dict, fraction: float) -> "Batch":
@@ -335,28 +357,33 @@ def rile_update(student: "SAC", trainer: "SAC", disc: nn.Module, rb: "ReplayBuff
     with prob(x) and update(expert_x, policy_x) (gail.py's here, DRAIL's in drail_disc.py)."""
     # student: SAC on r_S = the current trainer's action on the sampled (s, a_S)
     batch = mix_expert(rb.sample(args.batch_size), expert, args.student_expert_fraction)
-    r_s = student_reward(trainer.actor, batch.obs, batch.actions, args.termination_remedy)
+    r_s = student_reward(trainer.actor, trainer_input(*batch[:3], args.trainer_obs), args.termination_remedy)
     metrics = student.update(batch.obs, batch.actions, batch.next_obs, r_s, batch.terminations, prefix="losses/student_")
     metrics["reward/learned_mean"] = r_s.mean()
     if state["reward_only"]:
         return metrics
-    # discriminator: expert pairs against the most recent student pairs
+    # discriminator: expert pairs (s, a) against the most recent student pairs; transitions (s, s') with --state-only
+    seen = "next_obs" if args.state_only else "actions"  # what D sees beside s
     idx = torch.randint(0, len(expert["obs"]), (args.disc_batch_size,), device=expert["obs"].device)
     policy = rb.sample(args.disc_batch_size, recent=args.disc_buffer_size)
-    expert_x = torch.cat([expert["obs"][idx], expert["actions"][idx]], -1)
-    metrics |= disc.update(expert_x, torch.cat([policy.obs, policy.actions], -1))
+    expert_x = torch.cat([expert["obs"][idx], expert[seen][idx]], -1)
+    metrics |= disc.update(expert_x, torch.cat([policy.obs, getattr(policy, seen)], -1))
     if state["frozen_at"] is not None:
         return metrics
-    # trainer: SAC on o_T = (s, a_S), its stored action a_T, r_T from the current discriminator
-    batch = rb.sample(args.trainer_batch_size, recent=args.trainer_buffer_size)
+    # trainer: SAC on o_T = (s, a_S) or (s, s'), its stored action a_T, r_T from the current discriminator
+    idx = rb.indices(args.trainer_batch_size, recent=args.trainer_buffer_size)
+    batch = rb.batch(idx)
     a_t, n_expert = batch.extra, int(round(args.trainer_expert_fraction * len(batch.obs)))
     batch = mix_expert(batch, expert, args.trainer_expert_fraction)
-    obs_t = torch.cat([batch.obs, batch.actions], -1)
+    obs_t = trainer_input(*batch[:3], args.trainer_obs)
     with torch.no_grad():
         if n_expert:  # expert pairs were never acted on by the trainer: a fresh a_T for them
             a_t = torch.cat([trainer.actor.sample(obs_t[:n_expert])[0], a_t[n_expert:]])
-        r_t = trainer_reward(args.trainer_reward, disc.prob(obs_t), a_t.squeeze(-1))
-        next_obs_t = torch.cat([batch.next_obs, student.policy(batch.next_obs)[0]], -1)  # a'_S: the current student's
+        r_t = trainer_reward(args.trainer_reward, disc.prob(torch.cat([batch.obs, getattr(batch, seen)], -1)), a_t.squeeze(-1))
+        if args.trainer_obs == "transition":  # o_T' = (s', s''), s'' as the student went on
+            next_obs_t = torch.cat([batch.next_obs, successor_next_obs(rb, idx, batch)], -1)
+        else:  # o_T' = (s', a'_S), a'_S: the current student's
+            next_obs_t = torch.cat([batch.next_obs, student.policy(batch.next_obs)[0]], -1)
     metrics |= trainer.update(obs_t, a_t, next_obs_t, r_t, batch.terminations, prefix="losses/trainer_")
     metrics["reward/trainer_reward_mean"] = r_t.mean()
     loss = metrics["losses/trainer_qf_loss"]
@@ -589,12 +616,13 @@ class ReplayBuffer:
         self.size = min(self.size + 1, self.capacity)
 
     def sample(self, batch_size: int, recent: Optional[int] = None) -> Batch:
+        return self.batch(self.indices(batch_size, recent))
+
+    def indices(self, batch_size: int, recent: Optional[int] = None) -> torch.Tensor:
         """Uniform rows; with `recent`, only from the last `recent` added (a FIFO buffer of that size)."""
         window = self.size if recent is None else min(recent, self.size)
         idx = torch.randint(0, window, (batch_size,), device=self.storage.device)
-        if window < self.size:
-            idx = (self.pos - 1 - idx) % self.capacity
-        return self.batch(idx)
+        return (self.pos - 1 - idx) % self.capacity if window < self.size else idx
 
     def batch(self, idx) -> Batch:
         rows, o, a = self.storage[idx], self.obs_dim, self.act_dim
@@ -611,13 +639,15 @@ class ReplayBuffer:
 
 
 # --- shared: demonstrations ---
-DEMO_KEYS = ("observations", "actions", "next_observations", "rewards", "terminations", "truncations",
-             "episode_starts", "episode_lengths", "episode_returns", "metadata")
+DEMO_KEYS = ("observations", "next_observations", "rewards", "terminations", "truncations", "episode_starts",
+             "episode_lengths", "episode_returns")  # and "actions", except in state-only files
+STATE_ONLY_METHODS = "gaifo.py, bco.py, rile.py --state-only or drail_disc.py --state-only"
 
 
-def load_demonstrations(path: str, env: gym.Env, num_trajs: Optional[int] = None) -> dict:
+def load_demonstrations(path: str, env: gym.Env, num_trajs: Optional[int] = None, state_only: bool = False) -> dict:
     """Load experts/<env-id>.npz (format in README), check it belongs to `env`, keep the first
-    `num_trajs` episodes. Every problem is one clear SystemExit line."""
+    `num_trajs` episodes. With `state_only` the actions are dropped (a file without them loads); without,
+    they are required. Every problem is one clear SystemExit line."""
     env_id = env.spec.id
     if not os.path.isfile(path):
         raise SystemExit(f"error: no demonstrations at '{path}'; record them with "
@@ -625,27 +655,37 @@ def load_demonstrations(path: str, env: gym.Env, num_trajs: Optional[int] = None
     try:
         with np.load(path, allow_pickle=False) as f:
             data = {k: f[k] for k in f.files}
-        meta = json.loads(str(data["metadata"]))
+        meta = json.loads(str(data["metadata"])) if "metadata" in data else None
     except Exception as e:
         raise SystemExit(f"error: demonstrations '{path}' are unreadable or corrupt ({type(e).__name__}: {e}); "
                          f"record them again with `python expert.py --env-id {env_id}`") from None
+    if meta is None:
+        raise SystemExit(f"error: '{path}' is not in this project's format (no metadata); convert it with "
+                         f"`python demos.py convert {path} --env-id {env_id}`")
     missing = [k for k in DEMO_KEYS if k not in data]
     if missing:
         raise SystemExit(f"error: demonstrations '{path}' lack {missing}; record them again with expert.py")
+    if state_only:
+        data.pop("actions", None)  # never seen by a state-only method
+    elif "actions" not in data:
+        raise SystemExit(f"error: demonstrations '{path}' hold states only, and this method needs actions; "
+                         f"learn from them with {STATE_ONLY_METHODS}")
     if meta.get("env_id") != env_id:
         raise SystemExit(f"error: demonstrations '{path}' were recorded on {meta.get('env_id')}, not {env_id}; "
                          f"pass the file for {env_id} with --expert-path")
     obs_dim, act_dim = env.observation_space.shape[0], env.action_space.shape[0]
-    if data["observations"].shape[1:] != (obs_dim,) or data["actions"].shape[1:] != (act_dim,):
+    act_shape = data["actions"].shape[1:] if "actions" in data else (act_dim,)
+    if data["observations"].shape[1:] != (obs_dim,) or act_shape != (act_dim,):
         raise SystemExit(f"error: demonstrations '{path}' have obs/act dims {data['observations'].shape[1:]}/"
-                         f"{data['actions'].shape[1:]}, {env_id} has ({obs_dim},)/({act_dim},)")
+                         f"{act_shape}, {env_id} has ({obs_dim},)/({act_dim},)")
     num_episodes = len(data["episode_lengths"])
     if num_trajs is not None:
         if not 1 <= num_trajs <= num_episodes:
             raise SystemExit(f"error: --num-expert-trajs {num_trajs}, but '{path}' holds {num_episodes} episodes")
         end = int(data["episode_starts"][num_trajs - 1] + data["episode_lengths"][num_trajs - 1])
         for k in ("observations", "actions", "next_observations", "rewards", "terminations", "truncations"):
-            data[k] = data[k][:end]
+            if k in data:
+                data[k] = data[k][:end]
         for k in ("episode_starts", "episode_lengths", "episode_returns"):
             data[k] = data[k][:num_trajs]
     data["metadata"] = meta
@@ -655,17 +695,18 @@ def load_demonstrations(path: str, env: gym.Env, num_trajs: Optional[int] = None
 
 # --- shared: expert data ---
 def expert_tensors(demos: dict, args, action_low, action_high, device) -> dict:
-    """The expert transitions as tensors, with the noise of the noise-robustness experiment added once."""
+    """The expert transitions as tensors, with the noise of the noise-robustness experiment added once
+    (no "actions" from state-only demonstrations)."""
     rng = np.random.default_rng(args.seed + 1)
-    obs, next_obs, actions = demos["observations"], demos["next_observations"], demos["actions"]
+    obs, next_obs, actions = demos["observations"], demos["next_observations"], demos.get("actions")
     if args.expert_state_noise > 0:
         obs = obs + rng.normal(0, args.expert_state_noise, obs.shape).astype(np.float32)
         next_obs = next_obs + rng.normal(0, args.expert_state_noise, next_obs.shape).astype(np.float32)
     if getattr(args, "expert_action_noise", 0.0) > 0:  # state-only methods have no such flag
         actions = np.clip(actions + rng.normal(0, args.expert_action_noise, actions.shape), action_low, action_high)
     as_tensor = lambda x: torch.as_tensor(np.asarray(x, dtype=np.float32), device=device)
-    return {"obs": as_tensor(obs), "actions": as_tensor(actions), "next_obs": as_tensor(next_obs),
-            "terminations": as_tensor(demos["terminations"])}
+    expert = {"obs": as_tensor(obs), "next_obs": as_tensor(next_obs), "terminations": as_tensor(demos["terminations"])}
+    return expert if actions is None else expert | {"actions": as_tensor(actions)}
 # --- end shared: expert data ---
 
 
@@ -695,13 +736,15 @@ def store(rb: "ReplayBuffer", obs, action, next_obs, reward, terminated, absorbi
 def absorbing_expert(expert: dict) -> dict:
     """store()'s treatment applied to the demonstrations (a dict of tensors): the indicator column,
     terminal transitions lead to the absorbing state, one absorbing self-loop per termination."""
-    obs, actions, next_obs, term = expert["obs"], expert["actions"], expert["next_obs"], expert["terminations"] > 0
+    obs, next_obs, term = expert["obs"], expert["next_obs"], expert["terminations"] > 0
     s_abs = torch.as_tensor(absorbing_state(obs.shape[1]), device=obs.device)
     loops = s_abs.expand(int(term.sum()), -1)
     next_obs = torch.where(term.unsqueeze(-1), s_abs, F.pad(next_obs, (0, 1)))
-    return {**expert, "obs": torch.cat([F.pad(obs, (0, 1)), loops]), "next_obs": torch.cat([next_obs, loops]),
-            "actions": torch.cat([actions, actions.new_zeros(len(loops), actions.shape[1])]),
-            "terminations": obs.new_zeros(len(obs) + len(loops))}
+    out = {**expert, "obs": torch.cat([F.pad(obs, (0, 1)), loops]), "next_obs": torch.cat([next_obs, loops]),
+           "terminations": obs.new_zeros(len(obs) + len(loops))}
+    if "actions" in expert:  # the self-loops' action: zeros
+        out["actions"] = torch.cat([expert["actions"], expert["actions"].new_zeros(len(loops), expert["actions"].shape[1])])
+    return out
 # --- end shared: absorbing ---
 
 
@@ -735,7 +778,9 @@ class Run:
     their states, the RNG states and the run's progress."""
 
     def __init__(self, args, checkpoint: Optional[dict], stateful: dict, expert_return: Optional[float], device):
-        self.args, self.stateful, self.expert_return = args, stateful, expert_return
+        self.args, self.stateful = args, stateful
+        # None without it, or NaN: demonstrations without rewards
+        self.expert_return = expert_return if expert_return is not None and np.isfinite(expert_return) else None
         default_name = f"{args.env_id}__{args.exp_name}__{args.seed}__{int(time.time())}"
         self.name = checkpoint["run_name"] if checkpoint else (args.run_name or default_name)
         self.dir = os.path.join("runs", self.name)
@@ -904,13 +949,18 @@ if __name__ == "__main__":
     args, checkpoint = resume(args) if args.resume else (args, None)
     if args.disc_batch_size % 2:
         raise SystemExit("error: --disc-batch-size must be even (antithetic timestep sampling)")
+    if args.trainer_obs == "transition" and not args.state_only:
+        raise SystemExit("error: --trainer-obs transition goes with --state-only (a discriminator on transitions)")
+    for name in ("expert_action_noise", "student_expert_fraction", "trainer_expert_fraction"):
+        if args.state_only and getattr(args, name) > 0:
+            raise SystemExit(f"error: --{name.replace('_', '-')} needs the expert's actions, which --state-only does not use")
     torch.set_num_threads(args.threads)
     device = torch.device("cuda" if torch.cuda.is_available() and args.cuda else "cpu")
     seed_everything(args.seed, args.torch_deterministic)
     env = make_env(args.env_id, args.seed)
     obs_dim, act_dim = env.observation_space.shape[0], env.action_space.shape[0]
     low, high = env.action_space.low, env.action_space.high
-    demos = load_demonstrations(args.expert_path or f"experts/{args.env_id}.npz", env, args.num_expert_trajs)
+    demos = load_demonstrations(args.expert_path or f"experts/{args.env_id}.npz", env, args.num_expert_trajs, args.state_only)
     expert = expert_tensors(demos, args, low, high, device)
     absorbing = args.termination_remedy == "absorbing"
     if absorbing:
@@ -927,12 +977,17 @@ if __name__ == "__main__":
                                        policy_lr=args.trainer_lr, alpha=args.trainer_alpha, autotune=False,
                                        gamma=args.trainer_gamma, tau=args.trainer_tau)
     # the trainer treats the absorbing state as any other observation: its action there is the student's reward
-    trainer = SAC(aug_dim + act_dim, 1, np.array([-1.0]), np.array([1.0]), trainer_args, device)
+    transition = args.trainer_obs == "transition"
+    trainer = SAC(aug_dim + (aug_dim if transition else act_dim), 1, np.array([-1.0]), np.array([1.0]), trainer_args, device)
     obs_mean, obs_std = demos["observations"].mean(0), demos["observations"].std(0)
     if absorbing:  # the indicator column enters unscaled
         obs_mean, obs_std = np.append(obs_mean, 0.0), np.append(obs_std, 1.0)
-    disc = DiffusionDiscriminator(aug_dim, act_dim, args.disc_hidden_dim, args.diffusion_steps, args.disc_lr,
-                                  obs_mean, obs_std, args.shared_noise, args.num_draws).to(device)
+    if args.state_only:  # x = (s, s'): both standardised alike
+        x_mean, x_std = np.concatenate([obs_mean, obs_mean]), np.concatenate([obs_std, obs_std])
+    else:  # x = (s, a): actions enter raw
+        x_mean, x_std = np.concatenate([obs_mean, np.zeros(act_dim)]), np.concatenate([obs_std, np.ones(act_dim)])
+    disc = DiffusionDiscriminator(len(x_mean), args.disc_hidden_dim, args.diffusion_steps, args.disc_lr, x_mean, x_std,
+                                  args.shared_noise, args.num_draws).to(device)
     rb = ReplayBuffer(aug_dim, act_dim, args.buffer_size, device, extra_dim=1)
     state = {"frozen_at": None, "reward_only": False, "trainer_updates": 0,
              "critic_loss_ema": torch.tensor(float("inf"), device=device)}
@@ -941,7 +996,10 @@ if __name__ == "__main__":
     if not args.run_name:  # the two variants' runs apart
         args.run_name = f"{args.env_id}__{args.exp_name}-{args.student_reward}__{args.seed}__{int(time.time())}"
     run = Run(args, checkpoint, stateful, float(demos["episode_returns"].mean()), device)
-    trainer_obs = lambda s, a: np.concatenate([s, [0.0] * absorbing, a])  # (s, a_S), indicator 0 where used
+    s_abs, aug = absorbing_state(obs_dim), lambda s: np.append(s, 0.0) if absorbing else s  # indicator 0 for env states
+
+    def trainer_sees(s, a, s_next):  # o_T of one env step (s and s_next with the indicator where used), as trainer_input
+        return np.concatenate([s, s_next if transition else a])
 
     # TRY NOT TO MODIFY: start the game
     obs, _ = env.reset(seed=args.seed + run.start_step)
@@ -950,11 +1008,12 @@ if __name__ == "__main__":
             action = env.action_space.sample()
         else:
             action = agent.actor.act(obs)
-        a_t = trainer.actor.act(trainer_obs(obs, action)) if rile_mode else np.zeros(1)  # the trainer acts on the student's pair
         next_obs, reward, terminated, truncated, info = env.step(action)
-        a_t_absorbing = np.zeros(1)
-        if rile_mode and absorbing and terminated:
-            a_t_absorbing = trainer.actor.act(np.append(absorbing_state(obs_dim), np.zeros(act_dim)))
+        a_t, a_t_absorbing = np.zeros(1), np.zeros(1)
+        if rile_mode:  # the trainer acts on what the student did; after a termination, on the absorbing self-loop too
+            a_t = trainer.actor.act(trainer_sees(aug(obs), action, s_abs if absorbing and terminated else aug(next_obs)))
+            if absorbing and terminated:
+                a_t_absorbing = trainer.actor.act(trainer_sees(s_abs, np.zeros(act_dim), s_abs))
         store(rb, obs, action, next_obs, reward, terminated, absorbing, a_t, a_t_absorbing)  # env reward: never learned from
         obs = next_obs
         if terminated or truncated:
@@ -966,7 +1025,7 @@ if __name__ == "__main__":
             if rile_mode:
                 metrics = rile_update(agent, trainer, disc, rb, expert, args, state)
             else:
-                metrics = gail_update(agent, disc, rb, expert, args)
+                metrics = gail_update(agent, disc, rb, expert, args, state_only=args.state_only)
             if global_step % 1000 == 0:  # the same names in both variants: the student's SAC metrics as losses/student_*
                 run.log({name if rile_mode or "disc" in name else name.replace("losses/", "losses/student_"): value
                          for name, value in metrics.items() if name not in ("reward/learned_std", "reward/trainer_reward_mean")},

@@ -145,6 +145,9 @@ class Args:
     num_demos are kept); the metadata records every episode tried"""
     max_demo_tries: int = 200
     """with --full-episodes-only, give up after this many episodes"""
+    no_actions: bool = False
+    """write state-only demonstrations: no `actions` array (for gaifo.py, bco.py, rile.py --state-only,
+    drail_disc.py --state-only), as motion-capture data come"""
 
 
 # What only expert.py needs: the fast update and acting paths (--compile, --cudagraphs), then the demonstrations
@@ -263,6 +266,8 @@ def record_and_save(act, actor: "Actor", args, training_steps: int, source: str)
     demo_path = args.demo_path or os.path.join("experts", f"{args.env_id}.npz")
     demos, tried = record_demonstrations(act, args.env_id, args.num_demos, args.demo_seed, args.full_episodes_only,
                                          args.max_demo_tries)
+    if args.no_actions:
+        del demos["actions"]
     returns = demos["episode_returns"]
     all_returns = np.array([t[2] for t in tried])
     if args.full_episodes_only:
@@ -281,14 +286,15 @@ def record_and_save(act, actor: "Actor", args, training_steps: int, source: str)
         "tried_return_mean": float(all_returns.mean()), "tried_return_std": float(all_returns.std()),
         "return_mean": float(returns.mean()), "return_std": float(returns.std()),
         "return_min": float(returns.min()), "return_max": float(returns.max()),
-        "actions": "env units (the env's action box), as sent to env.step",
+        "state_only": args.no_actions,
+        "actions": "none (state-only)" if args.no_actions else "env units (the env's action box), as sent to env.step",
         "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
     }
     save_demonstrations(demo_path, demos, metadata)
     actor_path = os.path.splitext(demo_path)[0] + "-actor.pt"
     if os.path.abspath(actor_path) != os.path.abspath(source):
         torch.save(actor_file(actor, args.env_id, training_steps=training_steps), actor_path)
-    check = load_demonstrations(demo_path, make_env(args.env_id, args.seed))  # round trip
+    check = load_demonstrations(demo_path, make_env(args.env_id, args.seed), state_only=args.no_actions)  # round trip
     print(f"recorded {len(check['episode_lengths'])} episodes ({len(tried)} tried), {len(check['rewards'])} "
           f"transitions, return {returns.mean():.1f} +- {returns.std():.1f} (min {returns.min():.1f}) -> "
           f"{demo_path}, {actor_path}")
@@ -517,12 +523,13 @@ class ReplayBuffer:
         self.size = min(self.size + 1, self.capacity)
 
     def sample(self, batch_size: int, recent: Optional[int] = None) -> Batch:
+        return self.batch(self.indices(batch_size, recent))
+
+    def indices(self, batch_size: int, recent: Optional[int] = None) -> torch.Tensor:
         """Uniform rows; with `recent`, only from the last `recent` added (a FIFO buffer of that size)."""
         window = self.size if recent is None else min(recent, self.size)
         idx = torch.randint(0, window, (batch_size,), device=self.storage.device)
-        if window < self.size:
-            idx = (self.pos - 1 - idx) % self.capacity
-        return self.batch(idx)
+        return (self.pos - 1 - idx) % self.capacity if window < self.size else idx
 
     def batch(self, idx) -> Batch:
         rows, o, a = self.storage[idx], self.obs_dim, self.act_dim
@@ -539,13 +546,15 @@ class ReplayBuffer:
 
 
 # --- shared: demonstrations ---
-DEMO_KEYS = ("observations", "actions", "next_observations", "rewards", "terminations", "truncations",
-             "episode_starts", "episode_lengths", "episode_returns", "metadata")
+DEMO_KEYS = ("observations", "next_observations", "rewards", "terminations", "truncations", "episode_starts",
+             "episode_lengths", "episode_returns")  # and "actions", except in state-only files
+STATE_ONLY_METHODS = "gaifo.py, bco.py, rile.py --state-only or drail_disc.py --state-only"
 
 
-def load_demonstrations(path: str, env: gym.Env, num_trajs: Optional[int] = None) -> dict:
+def load_demonstrations(path: str, env: gym.Env, num_trajs: Optional[int] = None, state_only: bool = False) -> dict:
     """Load experts/<env-id>.npz (format in README), check it belongs to `env`, keep the first
-    `num_trajs` episodes. Every problem is one clear SystemExit line."""
+    `num_trajs` episodes. With `state_only` the actions are dropped (a file without them loads); without,
+    they are required. Every problem is one clear SystemExit line."""
     env_id = env.spec.id
     if not os.path.isfile(path):
         raise SystemExit(f"error: no demonstrations at '{path}'; record them with "
@@ -553,27 +562,37 @@ def load_demonstrations(path: str, env: gym.Env, num_trajs: Optional[int] = None
     try:
         with np.load(path, allow_pickle=False) as f:
             data = {k: f[k] for k in f.files}
-        meta = json.loads(str(data["metadata"]))
+        meta = json.loads(str(data["metadata"])) if "metadata" in data else None
     except Exception as e:
         raise SystemExit(f"error: demonstrations '{path}' are unreadable or corrupt ({type(e).__name__}: {e}); "
                          f"record them again with `python expert.py --env-id {env_id}`") from None
+    if meta is None:
+        raise SystemExit(f"error: '{path}' is not in this project's format (no metadata); convert it with "
+                         f"`python demos.py convert {path} --env-id {env_id}`")
     missing = [k for k in DEMO_KEYS if k not in data]
     if missing:
         raise SystemExit(f"error: demonstrations '{path}' lack {missing}; record them again with expert.py")
+    if state_only:
+        data.pop("actions", None)  # never seen by a state-only method
+    elif "actions" not in data:
+        raise SystemExit(f"error: demonstrations '{path}' hold states only, and this method needs actions; "
+                         f"learn from them with {STATE_ONLY_METHODS}")
     if meta.get("env_id") != env_id:
         raise SystemExit(f"error: demonstrations '{path}' were recorded on {meta.get('env_id')}, not {env_id}; "
                          f"pass the file for {env_id} with --expert-path")
     obs_dim, act_dim = env.observation_space.shape[0], env.action_space.shape[0]
-    if data["observations"].shape[1:] != (obs_dim,) or data["actions"].shape[1:] != (act_dim,):
+    act_shape = data["actions"].shape[1:] if "actions" in data else (act_dim,)
+    if data["observations"].shape[1:] != (obs_dim,) or act_shape != (act_dim,):
         raise SystemExit(f"error: demonstrations '{path}' have obs/act dims {data['observations'].shape[1:]}/"
-                         f"{data['actions'].shape[1:]}, {env_id} has ({obs_dim},)/({act_dim},)")
+                         f"{act_shape}, {env_id} has ({obs_dim},)/({act_dim},)")
     num_episodes = len(data["episode_lengths"])
     if num_trajs is not None:
         if not 1 <= num_trajs <= num_episodes:
             raise SystemExit(f"error: --num-expert-trajs {num_trajs}, but '{path}' holds {num_episodes} episodes")
         end = int(data["episode_starts"][num_trajs - 1] + data["episode_lengths"][num_trajs - 1])
         for k in ("observations", "actions", "next_observations", "rewards", "terminations", "truncations"):
-            data[k] = data[k][:end]
+            if k in data:
+                data[k] = data[k][:end]
         for k in ("episode_starts", "episode_lengths", "episode_returns"):
             data[k] = data[k][:num_trajs]
     data["metadata"] = meta
@@ -611,7 +630,9 @@ class Run:
     their states, the RNG states and the run's progress."""
 
     def __init__(self, args, checkpoint: Optional[dict], stateful: dict, expert_return: Optional[float], device):
-        self.args, self.stateful, self.expert_return = args, stateful, expert_return
+        self.args, self.stateful = args, stateful
+        # None without it, or NaN: demonstrations without rewards
+        self.expert_return = expert_return if expert_return is not None and np.isfinite(expert_return) else None
         default_name = f"{args.env_id}__{args.exp_name}__{args.seed}__{int(time.time())}"
         self.name = checkpoint["run_name"] if checkpoint else (args.run_name or default_name)
         self.dir = os.path.join("runs", self.name)

@@ -189,17 +189,19 @@ def gail_reward(logits, form: str):
     raise ValueError(f"unknown reward form '{form}'; choose softplus, logit or log-d")
 
 
-def gail_update(agent: "SAC", disc: nn.Module, rb: "ReplayBuffer", expert: dict, args) -> dict:
-    """One SAC update on rewards from the current discriminator, then one discriminator update."""
+def gail_update(agent: "SAC", disc: nn.Module, rb: "ReplayBuffer", expert: dict, args, state_only: bool = False) -> dict:
+    """One SAC update on rewards from the current discriminator, then one discriminator update. D scores
+    pairs (s, a), or with `state_only` transitions (s, s') (GAIfO: gaifo.py, drail_disc.py --state-only)."""
+    seen = "next_obs" if state_only else "actions"  # what D sees beside s
     batch = rb.sample(args.batch_size)  # its env rewards are never used
     with torch.no_grad():
-        rewards = gail_reward(disc(torch.cat([batch.obs, batch.actions], -1)), args.reward_form)
+        rewards = gail_reward(disc(torch.cat([batch.obs, getattr(batch, seen)], -1)), args.reward_form)
     metrics = agent.update(batch.obs, batch.actions, batch.next_obs, rewards, batch.terminations, prefix="losses/")
     metrics.update({"reward/learned_mean": rewards.mean(), "reward/learned_std": rewards.std()})
     idx = torch.randint(0, len(expert["obs"]), (args.disc_batch_size,), device=expert["obs"].device)
     policy = rb.sample(args.disc_batch_size, recent=args.disc_buffer_size)
-    expert_x = torch.cat([expert["obs"][idx], expert["actions"][idx]], -1)
-    return metrics | disc.update(expert_x, torch.cat([policy.obs, policy.actions], -1))
+    expert_x = torch.cat([expert["obs"][idx], expert[seen][idx]], -1)
+    return metrics | disc.update(expert_x, torch.cat([policy.obs, getattr(policy, seen)], -1))
 # --- end shared: gail ---
 
 
@@ -426,12 +428,13 @@ class ReplayBuffer:
         self.size = min(self.size + 1, self.capacity)
 
     def sample(self, batch_size: int, recent: Optional[int] = None) -> Batch:
+        return self.batch(self.indices(batch_size, recent))
+
+    def indices(self, batch_size: int, recent: Optional[int] = None) -> torch.Tensor:
         """Uniform rows; with `recent`, only from the last `recent` added (a FIFO buffer of that size)."""
         window = self.size if recent is None else min(recent, self.size)
         idx = torch.randint(0, window, (batch_size,), device=self.storage.device)
-        if window < self.size:
-            idx = (self.pos - 1 - idx) % self.capacity
-        return self.batch(idx)
+        return (self.pos - 1 - idx) % self.capacity if window < self.size else idx
 
     def batch(self, idx) -> Batch:
         rows, o, a = self.storage[idx], self.obs_dim, self.act_dim
@@ -448,13 +451,15 @@ class ReplayBuffer:
 
 
 # --- shared: demonstrations ---
-DEMO_KEYS = ("observations", "actions", "next_observations", "rewards", "terminations", "truncations",
-             "episode_starts", "episode_lengths", "episode_returns", "metadata")
+DEMO_KEYS = ("observations", "next_observations", "rewards", "terminations", "truncations", "episode_starts",
+             "episode_lengths", "episode_returns")  # and "actions", except in state-only files
+STATE_ONLY_METHODS = "gaifo.py, bco.py, rile.py --state-only or drail_disc.py --state-only"
 
 
-def load_demonstrations(path: str, env: gym.Env, num_trajs: Optional[int] = None) -> dict:
+def load_demonstrations(path: str, env: gym.Env, num_trajs: Optional[int] = None, state_only: bool = False) -> dict:
     """Load experts/<env-id>.npz (format in README), check it belongs to `env`, keep the first
-    `num_trajs` episodes. Every problem is one clear SystemExit line."""
+    `num_trajs` episodes. With `state_only` the actions are dropped (a file without them loads); without,
+    they are required. Every problem is one clear SystemExit line."""
     env_id = env.spec.id
     if not os.path.isfile(path):
         raise SystemExit(f"error: no demonstrations at '{path}'; record them with "
@@ -462,27 +467,37 @@ def load_demonstrations(path: str, env: gym.Env, num_trajs: Optional[int] = None
     try:
         with np.load(path, allow_pickle=False) as f:
             data = {k: f[k] for k in f.files}
-        meta = json.loads(str(data["metadata"]))
+        meta = json.loads(str(data["metadata"])) if "metadata" in data else None
     except Exception as e:
         raise SystemExit(f"error: demonstrations '{path}' are unreadable or corrupt ({type(e).__name__}: {e}); "
                          f"record them again with `python expert.py --env-id {env_id}`") from None
+    if meta is None:
+        raise SystemExit(f"error: '{path}' is not in this project's format (no metadata); convert it with "
+                         f"`python demos.py convert {path} --env-id {env_id}`")
     missing = [k for k in DEMO_KEYS if k not in data]
     if missing:
         raise SystemExit(f"error: demonstrations '{path}' lack {missing}; record them again with expert.py")
+    if state_only:
+        data.pop("actions", None)  # never seen by a state-only method
+    elif "actions" not in data:
+        raise SystemExit(f"error: demonstrations '{path}' hold states only, and this method needs actions; "
+                         f"learn from them with {STATE_ONLY_METHODS}")
     if meta.get("env_id") != env_id:
         raise SystemExit(f"error: demonstrations '{path}' were recorded on {meta.get('env_id')}, not {env_id}; "
                          f"pass the file for {env_id} with --expert-path")
     obs_dim, act_dim = env.observation_space.shape[0], env.action_space.shape[0]
-    if data["observations"].shape[1:] != (obs_dim,) or data["actions"].shape[1:] != (act_dim,):
+    act_shape = data["actions"].shape[1:] if "actions" in data else (act_dim,)
+    if data["observations"].shape[1:] != (obs_dim,) or act_shape != (act_dim,):
         raise SystemExit(f"error: demonstrations '{path}' have obs/act dims {data['observations'].shape[1:]}/"
-                         f"{data['actions'].shape[1:]}, {env_id} has ({obs_dim},)/({act_dim},)")
+                         f"{act_shape}, {env_id} has ({obs_dim},)/({act_dim},)")
     num_episodes = len(data["episode_lengths"])
     if num_trajs is not None:
         if not 1 <= num_trajs <= num_episodes:
             raise SystemExit(f"error: --num-expert-trajs {num_trajs}, but '{path}' holds {num_episodes} episodes")
         end = int(data["episode_starts"][num_trajs - 1] + data["episode_lengths"][num_trajs - 1])
         for k in ("observations", "actions", "next_observations", "rewards", "terminations", "truncations"):
-            data[k] = data[k][:end]
+            if k in data:
+                data[k] = data[k][:end]
         for k in ("episode_starts", "episode_lengths", "episode_returns"):
             data[k] = data[k][:num_trajs]
     data["metadata"] = meta
@@ -492,17 +507,18 @@ def load_demonstrations(path: str, env: gym.Env, num_trajs: Optional[int] = None
 
 # --- shared: expert data ---
 def expert_tensors(demos: dict, args, action_low, action_high, device) -> dict:
-    """The expert transitions as tensors, with the noise of the noise-robustness experiment added once."""
+    """The expert transitions as tensors, with the noise of the noise-robustness experiment added once
+    (no "actions" from state-only demonstrations)."""
     rng = np.random.default_rng(args.seed + 1)
-    obs, next_obs, actions = demos["observations"], demos["next_observations"], demos["actions"]
+    obs, next_obs, actions = demos["observations"], demos["next_observations"], demos.get("actions")
     if args.expert_state_noise > 0:
         obs = obs + rng.normal(0, args.expert_state_noise, obs.shape).astype(np.float32)
         next_obs = next_obs + rng.normal(0, args.expert_state_noise, next_obs.shape).astype(np.float32)
     if getattr(args, "expert_action_noise", 0.0) > 0:  # state-only methods have no such flag
         actions = np.clip(actions + rng.normal(0, args.expert_action_noise, actions.shape), action_low, action_high)
     as_tensor = lambda x: torch.as_tensor(np.asarray(x, dtype=np.float32), device=device)
-    return {"obs": as_tensor(obs), "actions": as_tensor(actions), "next_obs": as_tensor(next_obs),
-            "terminations": as_tensor(demos["terminations"])}
+    expert = {"obs": as_tensor(obs), "next_obs": as_tensor(next_obs), "terminations": as_tensor(demos["terminations"])}
+    return expert if actions is None else expert | {"actions": as_tensor(actions)}
 # --- end shared: expert data ---
 
 
@@ -532,13 +548,15 @@ def store(rb: "ReplayBuffer", obs, action, next_obs, reward, terminated, absorbi
 def absorbing_expert(expert: dict) -> dict:
     """store()'s treatment applied to the demonstrations (a dict of tensors): the indicator column,
     terminal transitions lead to the absorbing state, one absorbing self-loop per termination."""
-    obs, actions, next_obs, term = expert["obs"], expert["actions"], expert["next_obs"], expert["terminations"] > 0
+    obs, next_obs, term = expert["obs"], expert["next_obs"], expert["terminations"] > 0
     s_abs = torch.as_tensor(absorbing_state(obs.shape[1]), device=obs.device)
     loops = s_abs.expand(int(term.sum()), -1)
     next_obs = torch.where(term.unsqueeze(-1), s_abs, F.pad(next_obs, (0, 1)))
-    return {**expert, "obs": torch.cat([F.pad(obs, (0, 1)), loops]), "next_obs": torch.cat([next_obs, loops]),
-            "actions": torch.cat([actions, actions.new_zeros(len(loops), actions.shape[1])]),
-            "terminations": obs.new_zeros(len(obs) + len(loops))}
+    out = {**expert, "obs": torch.cat([F.pad(obs, (0, 1)), loops]), "next_obs": torch.cat([next_obs, loops]),
+           "terminations": obs.new_zeros(len(obs) + len(loops))}
+    if "actions" in expert:  # the self-loops' action: zeros
+        out["actions"] = torch.cat([expert["actions"], expert["actions"].new_zeros(len(loops), expert["actions"].shape[1])])
+    return out
 # --- end shared: absorbing ---
 
 
@@ -572,7 +590,9 @@ class Run:
     their states, the RNG states and the run's progress."""
 
     def __init__(self, args, checkpoint: Optional[dict], stateful: dict, expert_return: Optional[float], device):
-        self.args, self.stateful, self.expert_return = args, stateful, expert_return
+        self.args, self.stateful = args, stateful
+        # None without it, or NaN: demonstrations without rewards
+        self.expert_return = expert_return if expert_return is not None and np.isfinite(expert_return) else None
         default_name = f"{args.env_id}__{args.exp_name}__{args.seed}__{int(time.time())}"
         self.name = checkpoint["run_name"] if checkpoint else (args.run_name or default_name)
         self.dir = os.path.join("runs", self.name)

@@ -44,6 +44,15 @@ Implementation choices and deviations
    every sampled batch is expert pairs, which in expectation is that share of the buffer; expert pairs
    in the trainer's batch get a fresh a_T from the trainer); reward-function dynamics every
    `--dynamics-freq` steps (RFDC, FS-RFDC, CPR; written to dynamics.json and TensorBoard).
+9. From states only (`--state-only`, the regime of the paper's LocoMuJoCo results): the demonstrations'
+   actions are dropped on loading (a file without them loads) and D scores transitions (s, s') as in
+   GAIfO, the expert's and the student's alike. The trainer still observes (s, a_S) by default: under
+   deterministic dynamics s' = f(s, a_S), so D(s, s') is a function of what it sees, and its next
+   observation (s', a'_S) stays a fresh sample from the current student (choice 2). `--trainer-obs
+   transition` makes it observe (s, s') instead; its next observation (s', s'') then has to come from
+   the step the student took next, as stored (an older student's; s' itself after a time limit).
+   Expert action noise and the expert fractions need expert actions and are refused; FS-RFDC needs the
+   trainer's reward on expert data and is not logged with the (s, a_S) trainer.
 
 Logged metrics: charts/episodic_return, charts/SPS, eval/return, eval/normalized_return,
 losses/{student,trainer}_{qf_loss,qf_values,actor_loss,alpha_loss,alpha,entropy}, losses/disc_loss,
@@ -160,6 +169,8 @@ class Args:
     """freeze when the moving average (0.99) of the trainer's critic loss falls below this"""
     trainer_freeze_min_updates: int = 10_000
     """never freeze before this many trainer updates"""
+    trainer_obs: Literal["state-action", "transition"] = "state-action"
+    """what the trainer observes: the student's (s, a_S) (paper), or its transition (s, s') (needs --state-only)"""
 
     # Discriminator arguments
     disc_hidden_dim: int = 64
@@ -178,6 +189,9 @@ class Args:
     """demonstrations (default: experts/<env_id>.npz)"""
     num_expert_trajs: int = 25
     """use the first this many demonstration episodes"""
+    state_only: bool = False
+    """imitate from states only: the demonstrations' actions are not used (none needed) and the discriminator
+    scores transitions (s, s') instead of pairs (s, a)"""
     expert_action_noise: float = 0.0
     """std of Gaussian noise added to the expert's actions (noise-robustness experiment)"""
     expert_state_noise: float = 0.0
@@ -254,11 +268,25 @@ def trainer_reward(name: str, d, a_t):
     raise ValueError(f"unknown trainer reward '{name}'; choose from {TRAINER_REWARDS}")
 
 
-def student_reward(trainer_actor, obs, actions, remedy: str):
-    """r_S: the trainer's deterministic action on (s, a_S); with remedy 'survival', mapped to [0, 1]."""
+def student_reward(trainer_actor, obs_t, remedy: str):
+    """r_S: the trainer's deterministic action on its observation o_T; with remedy 'survival', mapped to [0, 1]."""
     with torch.no_grad():
-        a_t = trainer_actor.deterministic(torch.cat([obs, actions], -1)).squeeze(-1)
+        a_t = trainer_actor.deterministic(obs_t).squeeze(-1)
     return (1 + a_t) / 2 if remedy == "survival" else a_t
+
+
+def trainer_input(obs, actions, next_obs, trainer_obs: str):
+    """What the trainer observes, o_T: the student's pair (s, a_S) (paper), or its transition (s, s')."""
+    return torch.cat([obs, next_obs if trainer_obs == "transition" else actions], -1)
+
+
+def successor_next_obs(rb: "ReplayBuffer", idx, batch: "Batch"):
+    """s'' for the trainer's next observation (s', s'') with --trainer-obs transition: the next_obs of the
+    row stored after each sampled one where that row continues the episode (its obs is s'); at an episode's
+    last stored step (a time limit) s' itself. With absorbing states a termination continues to the loop."""
+    following = rb.batch((idx + 1) % rb.capacity)
+    continues = (following.obs == batch.next_obs).all(-1, keepdim=True) & ((idx + 1) % rb.capacity != rb.pos)[:, None]
+    return torch.where(continues, following.next_obs, batch.next_obs)
 
 
 def mix_expert(batch: "Batch", expert: dict, fraction: float) -> "Batch":
@@ -279,28 +307,33 @@ def rile_update(student: "SAC", trainer: "SAC", disc: nn.Module, rb: "ReplayBuff
     with prob(x) and update(expert_x, policy_x) (gail.py's here, DRAIL's in drail_disc.py)."""
     # student: SAC on r_S = the current trainer's action on the sampled (s, a_S)
     batch = mix_expert(rb.sample(args.batch_size), expert, args.student_expert_fraction)
-    r_s = student_reward(trainer.actor, batch.obs, batch.actions, args.termination_remedy)
+    r_s = student_reward(trainer.actor, trainer_input(*batch[:3], args.trainer_obs), args.termination_remedy)
     metrics = student.update(batch.obs, batch.actions, batch.next_obs, r_s, batch.terminations, prefix="losses/student_")
     metrics["reward/learned_mean"] = r_s.mean()
     if state["reward_only"]:
         return metrics
-    # discriminator: expert pairs against the most recent student pairs
+    # discriminator: expert pairs (s, a) against the most recent student pairs; transitions (s, s') with --state-only
+    seen = "next_obs" if args.state_only else "actions"  # what D sees beside s
     idx = torch.randint(0, len(expert["obs"]), (args.disc_batch_size,), device=expert["obs"].device)
     policy = rb.sample(args.disc_batch_size, recent=args.disc_buffer_size)
-    expert_x = torch.cat([expert["obs"][idx], expert["actions"][idx]], -1)
-    metrics |= disc.update(expert_x, torch.cat([policy.obs, policy.actions], -1))
+    expert_x = torch.cat([expert["obs"][idx], expert[seen][idx]], -1)
+    metrics |= disc.update(expert_x, torch.cat([policy.obs, getattr(policy, seen)], -1))
     if state["frozen_at"] is not None:
         return metrics
-    # trainer: SAC on o_T = (s, a_S), its stored action a_T, r_T from the current discriminator
-    batch = rb.sample(args.trainer_batch_size, recent=args.trainer_buffer_size)
+    # trainer: SAC on o_T = (s, a_S) or (s, s'), its stored action a_T, r_T from the current discriminator
+    idx = rb.indices(args.trainer_batch_size, recent=args.trainer_buffer_size)
+    batch = rb.batch(idx)
     a_t, n_expert = batch.extra, int(round(args.trainer_expert_fraction * len(batch.obs)))
     batch = mix_expert(batch, expert, args.trainer_expert_fraction)
-    obs_t = torch.cat([batch.obs, batch.actions], -1)
+    obs_t = trainer_input(*batch[:3], args.trainer_obs)
     with torch.no_grad():
         if n_expert:  # expert pairs were never acted on by the trainer: a fresh a_T for them
             a_t = torch.cat([trainer.actor.sample(obs_t[:n_expert])[0], a_t[n_expert:]])
-        r_t = trainer_reward(args.trainer_reward, disc.prob(obs_t), a_t.squeeze(-1))
-        next_obs_t = torch.cat([batch.next_obs, student.policy(batch.next_obs)[0]], -1)  # a'_S: the current student's
+        r_t = trainer_reward(args.trainer_reward, disc.prob(torch.cat([batch.obs, getattr(batch, seen)], -1)), a_t.squeeze(-1))
+        if args.trainer_obs == "transition":  # o_T' = (s', s''), s'' as the student went on
+            next_obs_t = torch.cat([batch.next_obs, successor_next_obs(rb, idx, batch)], -1)
+        else:  # o_T' = (s', a'_S), a'_S: the current student's
+            next_obs_t = torch.cat([batch.next_obs, student.policy(batch.next_obs)[0]], -1)
     metrics |= trainer.update(obs_t, a_t, next_obs_t, r_t, batch.terminations, prefix="losses/trainer_")
     metrics["reward/trainer_reward_mean"] = r_t.mean()
     loss = metrics["losses/trainer_qf_loss"]
@@ -320,10 +353,11 @@ class RewardDynamics:
         self.prev_interval, self.prev_expert, self.history = None, None, []
 
     def step(self, step: int, interval_rewards, interval_env_rewards, expert_rewards) -> dict:
-        cpr = pearson(interval_rewards, interval_env_rewards)
+        cpr = pearson(interval_rewards, interval_env_rewards)  # expert_rewards: None where they cannot be computed
         out = {"step": step, "cpr": None if np.isnan(cpr) else cpr,  # undefined when a reward is constant
                "rfdc": wasserstein_1d(interval_rewards, self.prev_interval) if self.prev_interval is not None else None,
-               "fs_rfdc": float(np.abs(expert_rewards - self.prev_expert).mean()) if self.prev_expert is not None else None}
+               "fs_rfdc": float(np.abs(expert_rewards - self.prev_expert).mean())
+               if self.prev_expert is not None and expert_rewards is not None else None}
         self.prev_interval, self.prev_expert = interval_rewards, expert_rewards
         self.history.append(out)
         return out
@@ -351,20 +385,21 @@ def reward_file(trainer: "SAC", disc: "Discriminator", args, obs_dim: int, act_d
     """What reward.pt holds: the learned reward (the trainer's actor gives r_S) and the discriminator."""
     return {"trainer_actor": trainer.actor.state_dict(), "disc": disc.state_dict(), "env_id": args.env_id,
             "obs_dim": obs_dim, "act_dim": act_dim, "trainer_hidden_dim": args.trainer_hidden_dim,
-            "disc_hidden_dim": args.disc_hidden_dim, "termination_remedy": args.termination_remedy}
+            "disc_hidden_dim": args.disc_hidden_dim, "termination_remedy": args.termination_remedy,
+            "state_only": args.state_only, "trainer_obs": args.trainer_obs}
 
 
-def load_reward(path: str, trainer: "SAC", disc: "Discriminator", env_id: str, obs_dim: int, act_dim: int,
-                remedy: str = "absorbing") -> dict:
+def load_reward(path: str, trainer: "SAC", disc: "Discriminator", args, obs_dim: int, act_dim: int) -> dict:
     """A saved reward.pt (the trainer's actor and the discriminator) into `trainer` and `disc`, with clear errors."""
     if not os.path.isfile(path):
         raise SystemExit(f"error: no saved reward at '{path}'; a finished rile.py run writes runs/<run>/reward.pt")
     saved = torch.load(path, map_location="cpu", weights_only=True)
-    if (saved["env_id"], saved["obs_dim"], saved["act_dim"]) != (env_id, obs_dim, act_dim):
-        raise SystemExit(f"error: reward '{path}' was learned on {saved['env_id']}, not {env_id}")
-    if saved["termination_remedy"] != remedy:
-        raise SystemExit(f"error: reward '{path}' was learned with --termination-remedy {saved['termination_remedy']}; "
-                         f"pass the same to train against it")
+    if (saved["env_id"], saved["obs_dim"], saved["act_dim"]) != (args.env_id, obs_dim, act_dim):
+        raise SystemExit(f"error: reward '{path}' was learned on {saved['env_id']}, not {args.env_id}")
+    for name in ("termination_remedy", "state_only", "trainer_obs"):
+        if saved[name] != getattr(args, name):
+            flag = f"--{name.replace('_', '-')}"
+            raise SystemExit(f"error: reward '{path}' was learned with {flag} {saved[name]}; pass the same to train against it")
     trainer.actor.load_state_dict(saved["trainer_actor"])
     disc.load_state_dict(saved["disc"])
     return saved
@@ -593,12 +628,13 @@ class ReplayBuffer:
         self.size = min(self.size + 1, self.capacity)
 
     def sample(self, batch_size: int, recent: Optional[int] = None) -> Batch:
+        return self.batch(self.indices(batch_size, recent))
+
+    def indices(self, batch_size: int, recent: Optional[int] = None) -> torch.Tensor:
         """Uniform rows; with `recent`, only from the last `recent` added (a FIFO buffer of that size)."""
         window = self.size if recent is None else min(recent, self.size)
         idx = torch.randint(0, window, (batch_size,), device=self.storage.device)
-        if window < self.size:
-            idx = (self.pos - 1 - idx) % self.capacity
-        return self.batch(idx)
+        return (self.pos - 1 - idx) % self.capacity if window < self.size else idx
 
     def batch(self, idx) -> Batch:
         rows, o, a = self.storage[idx], self.obs_dim, self.act_dim
@@ -615,13 +651,15 @@ class ReplayBuffer:
 
 
 # --- shared: demonstrations ---
-DEMO_KEYS = ("observations", "actions", "next_observations", "rewards", "terminations", "truncations",
-             "episode_starts", "episode_lengths", "episode_returns", "metadata")
+DEMO_KEYS = ("observations", "next_observations", "rewards", "terminations", "truncations", "episode_starts",
+             "episode_lengths", "episode_returns")  # and "actions", except in state-only files
+STATE_ONLY_METHODS = "gaifo.py, bco.py, rile.py --state-only or drail_disc.py --state-only"
 
 
-def load_demonstrations(path: str, env: gym.Env, num_trajs: Optional[int] = None) -> dict:
+def load_demonstrations(path: str, env: gym.Env, num_trajs: Optional[int] = None, state_only: bool = False) -> dict:
     """Load experts/<env-id>.npz (format in README), check it belongs to `env`, keep the first
-    `num_trajs` episodes. Every problem is one clear SystemExit line."""
+    `num_trajs` episodes. With `state_only` the actions are dropped (a file without them loads); without,
+    they are required. Every problem is one clear SystemExit line."""
     env_id = env.spec.id
     if not os.path.isfile(path):
         raise SystemExit(f"error: no demonstrations at '{path}'; record them with "
@@ -629,27 +667,37 @@ def load_demonstrations(path: str, env: gym.Env, num_trajs: Optional[int] = None
     try:
         with np.load(path, allow_pickle=False) as f:
             data = {k: f[k] for k in f.files}
-        meta = json.loads(str(data["metadata"]))
+        meta = json.loads(str(data["metadata"])) if "metadata" in data else None
     except Exception as e:
         raise SystemExit(f"error: demonstrations '{path}' are unreadable or corrupt ({type(e).__name__}: {e}); "
                          f"record them again with `python expert.py --env-id {env_id}`") from None
+    if meta is None:
+        raise SystemExit(f"error: '{path}' is not in this project's format (no metadata); convert it with "
+                         f"`python demos.py convert {path} --env-id {env_id}`")
     missing = [k for k in DEMO_KEYS if k not in data]
     if missing:
         raise SystemExit(f"error: demonstrations '{path}' lack {missing}; record them again with expert.py")
+    if state_only:
+        data.pop("actions", None)  # never seen by a state-only method
+    elif "actions" not in data:
+        raise SystemExit(f"error: demonstrations '{path}' hold states only, and this method needs actions; "
+                         f"learn from them with {STATE_ONLY_METHODS}")
     if meta.get("env_id") != env_id:
         raise SystemExit(f"error: demonstrations '{path}' were recorded on {meta.get('env_id')}, not {env_id}; "
                          f"pass the file for {env_id} with --expert-path")
     obs_dim, act_dim = env.observation_space.shape[0], env.action_space.shape[0]
-    if data["observations"].shape[1:] != (obs_dim,) or data["actions"].shape[1:] != (act_dim,):
+    act_shape = data["actions"].shape[1:] if "actions" in data else (act_dim,)
+    if data["observations"].shape[1:] != (obs_dim,) or act_shape != (act_dim,):
         raise SystemExit(f"error: demonstrations '{path}' have obs/act dims {data['observations'].shape[1:]}/"
-                         f"{data['actions'].shape[1:]}, {env_id} has ({obs_dim},)/({act_dim},)")
+                         f"{act_shape}, {env_id} has ({obs_dim},)/({act_dim},)")
     num_episodes = len(data["episode_lengths"])
     if num_trajs is not None:
         if not 1 <= num_trajs <= num_episodes:
             raise SystemExit(f"error: --num-expert-trajs {num_trajs}, but '{path}' holds {num_episodes} episodes")
         end = int(data["episode_starts"][num_trajs - 1] + data["episode_lengths"][num_trajs - 1])
         for k in ("observations", "actions", "next_observations", "rewards", "terminations", "truncations"):
-            data[k] = data[k][:end]
+            if k in data:
+                data[k] = data[k][:end]
         for k in ("episode_starts", "episode_lengths", "episode_returns"):
             data[k] = data[k][:num_trajs]
     data["metadata"] = meta
@@ -659,17 +707,18 @@ def load_demonstrations(path: str, env: gym.Env, num_trajs: Optional[int] = None
 
 # --- shared: expert data ---
 def expert_tensors(demos: dict, args, action_low, action_high, device) -> dict:
-    """The expert transitions as tensors, with the noise of the noise-robustness experiment added once."""
+    """The expert transitions as tensors, with the noise of the noise-robustness experiment added once
+    (no "actions" from state-only demonstrations)."""
     rng = np.random.default_rng(args.seed + 1)
-    obs, next_obs, actions = demos["observations"], demos["next_observations"], demos["actions"]
+    obs, next_obs, actions = demos["observations"], demos["next_observations"], demos.get("actions")
     if args.expert_state_noise > 0:
         obs = obs + rng.normal(0, args.expert_state_noise, obs.shape).astype(np.float32)
         next_obs = next_obs + rng.normal(0, args.expert_state_noise, next_obs.shape).astype(np.float32)
     if getattr(args, "expert_action_noise", 0.0) > 0:  # state-only methods have no such flag
         actions = np.clip(actions + rng.normal(0, args.expert_action_noise, actions.shape), action_low, action_high)
     as_tensor = lambda x: torch.as_tensor(np.asarray(x, dtype=np.float32), device=device)
-    return {"obs": as_tensor(obs), "actions": as_tensor(actions), "next_obs": as_tensor(next_obs),
-            "terminations": as_tensor(demos["terminations"])}
+    expert = {"obs": as_tensor(obs), "next_obs": as_tensor(next_obs), "terminations": as_tensor(demos["terminations"])}
+    return expert if actions is None else expert | {"actions": as_tensor(actions)}
 # --- end shared: expert data ---
 
 
@@ -699,13 +748,15 @@ def store(rb: "ReplayBuffer", obs, action, next_obs, reward, terminated, absorbi
 def absorbing_expert(expert: dict) -> dict:
     """store()'s treatment applied to the demonstrations (a dict of tensors): the indicator column,
     terminal transitions lead to the absorbing state, one absorbing self-loop per termination."""
-    obs, actions, next_obs, term = expert["obs"], expert["actions"], expert["next_obs"], expert["terminations"] > 0
+    obs, next_obs, term = expert["obs"], expert["next_obs"], expert["terminations"] > 0
     s_abs = torch.as_tensor(absorbing_state(obs.shape[1]), device=obs.device)
     loops = s_abs.expand(int(term.sum()), -1)
     next_obs = torch.where(term.unsqueeze(-1), s_abs, F.pad(next_obs, (0, 1)))
-    return {**expert, "obs": torch.cat([F.pad(obs, (0, 1)), loops]), "next_obs": torch.cat([next_obs, loops]),
-            "actions": torch.cat([actions, actions.new_zeros(len(loops), actions.shape[1])]),
-            "terminations": obs.new_zeros(len(obs) + len(loops))}
+    out = {**expert, "obs": torch.cat([F.pad(obs, (0, 1)), loops]), "next_obs": torch.cat([next_obs, loops]),
+           "terminations": obs.new_zeros(len(obs) + len(loops))}
+    if "actions" in expert:  # the self-loops' action: zeros
+        out["actions"] = torch.cat([expert["actions"], expert["actions"].new_zeros(len(loops), expert["actions"].shape[1])])
+    return out
 # --- end shared: absorbing ---
 
 
@@ -739,7 +790,9 @@ class Run:
     their states, the RNG states and the run's progress."""
 
     def __init__(self, args, checkpoint: Optional[dict], stateful: dict, expert_return: Optional[float], device):
-        self.args, self.stateful, self.expert_return = args, stateful, expert_return
+        self.args, self.stateful = args, stateful
+        # None without it, or NaN: demonstrations without rewards
+        self.expert_return = expert_return if expert_return is not None and np.isfinite(expert_return) else None
         default_name = f"{args.env_id}__{args.exp_name}__{args.seed}__{int(time.time())}"
         self.name = checkpoint["run_name"] if checkpoint else (args.run_name or default_name)
         self.dir = os.path.join("runs", self.name)
@@ -909,13 +962,18 @@ if __name__ == "__main__":
     for name in ("student_expert_fraction", "trainer_expert_fraction", "epsilon"):
         if not 0.0 <= getattr(args, name) <= 1.0:
             raise SystemExit(f"error: --{name.replace('_', '-')} must lie in [0, 1]")
+    if args.trainer_obs == "transition" and not args.state_only:
+        raise SystemExit("error: --trainer-obs transition goes with --state-only (a discriminator on transitions)")
+    for name in ("expert_action_noise", "student_expert_fraction", "trainer_expert_fraction"):
+        if args.state_only and getattr(args, name) > 0:
+            raise SystemExit(f"error: --{name.replace('_', '-')} needs the expert's actions, which --state-only does not use")
     torch.set_num_threads(args.threads)
     device = torch.device("cuda" if torch.cuda.is_available() and args.cuda else "cpu")
     seed_everything(args.seed, args.torch_deterministic)
     env = make_env(args.env_id, args.seed)
     obs_dim, act_dim = env.observation_space.shape[0], env.action_space.shape[0]
     low, high = env.action_space.low, env.action_space.high
-    demos = load_demonstrations(args.expert_path or f"experts/{args.env_id}.npz", env, args.num_expert_trajs)
+    demos = load_demonstrations(args.expert_path or f"experts/{args.env_id}.npz", env, args.num_expert_trajs, args.state_only)
     expert = expert_tensors(demos, args, low, high, device)
     absorbing = args.termination_remedy == "absorbing"
     if absorbing:
@@ -928,25 +986,33 @@ if __name__ == "__main__":
                                        policy_lr=args.trainer_lr, alpha=args.trainer_alpha, autotune=False,
                                        gamma=args.trainer_gamma, tau=args.trainer_tau)
     # the trainer treats the absorbing state as any other observation: its action there is the student's reward
-    trainer = SAC(aug_dim + act_dim, 1, np.array([-1.0]), np.array([1.0]), trainer_args, device)
-    disc = Discriminator(aug_dim + act_dim, args.disc_hidden_dim, args.disc_lr, args.disc_gp).to(device)
+    transition = args.trainer_obs == "transition"
+    trainer = SAC(aug_dim + (aug_dim if transition else act_dim), 1, np.array([-1.0]), np.array([1.0]), trainer_args, device)
+    disc = Discriminator(aug_dim + (aug_dim if args.state_only else act_dim), args.disc_hidden_dim, args.disc_lr,
+                         args.disc_gp).to(device)
     rb = ReplayBuffer(aug_dim, act_dim, args.buffer_size, device, extra_dim=1)
     state = {"frozen_at": None, "reward_only": bool(args.reward_from), "trainer_updates": 0,
              "critic_loss_ema": torch.tensor(float("inf"), device=device)}
     if args.reward_from:  # covariate shift: a frozen learned reward, only the student learns
-        load_reward(args.reward_from, trainer, disc, args.env_id, obs_dim, act_dim, args.termination_remedy)
+        load_reward(args.reward_from, trainer, disc, args, obs_dim, act_dim)
         state["frozen_at"] = 0
     dynamics = RewardDynamics()
     stateful = {"agent": agent, "trainer": trainer, "disc": disc, "disc_optimizer": disc.optimizer, "replay_buffer": rb,
                 "rile": state, "dynamics": dynamics}
     run = Run(args, checkpoint, stateful, float(demos["episode_returns"].mean()), device)
-    trainer_obs = lambda s, a: np.concatenate([s, [0.0] * absorbing, a])  # (s, a_S), indicator 0 where used
+    s_abs, aug = absorbing_state(obs_dim), lambda s: np.append(s, 0.0) if absorbing else s  # indicator 0 for env states
+
+    def trainer_sees(s, a, s_next):  # o_T of one env step (s and s_next with the indicator where used), as trainer_input
+        return np.concatenate([s, s_next if transition else a])
 
     def log_dynamics(step):
         n = min(args.dynamics_freq, rb.size)
         recent = rb.batch((rb.pos - 1 - torch.arange(n, device=device)) % rb.capacity)
-        learned = student_reward(trainer.actor, recent.obs, recent.actions, args.termination_remedy).cpu().numpy()
-        on_expert = student_reward(trainer.actor, expert["obs"], expert["actions"], args.termination_remedy).cpu().numpy()
+        reward_of = lambda obs_t: student_reward(trainer.actor, obs_t, args.termination_remedy).cpu().numpy()
+        learned = reward_of(trainer_input(*recent[:3], args.trainer_obs))
+        on_expert = None  # FS-RFDC needs the trainer's observation of expert pairs: none without expert actions
+        if "actions" in expert or transition:
+            on_expert = reward_of(trainer_input(expert["obs"], expert.get("actions"), expert["next_obs"], args.trainer_obs))
         out = dynamics.step(step, learned, recent.rewards.cpu().numpy(), on_expert)
         run.log({f"dynamics/{key}": out[key] for key in ("rfdc", "fs_rfdc", "cpr") if out[key] is not None}, step)
         with open(os.path.join(run.dir, "dynamics.json"), "w") as f:
@@ -959,12 +1025,13 @@ if __name__ == "__main__":
             action = env.action_space.sample()
         else:
             action = agent.actor.act(obs)
-        a_t = trainer.actor.act(trainer_obs(obs, action))  # the trainer acts on the student's pair
         executed = action
         if args.student_action_noise > 0:
             executed = np.clip(action + np.random.normal(0, args.student_action_noise, act_dim), low, high).astype(np.float32)
         next_obs, reward, terminated, truncated, info = env.step(executed)
-        a_t_absorbing = trainer.actor.act(np.append(absorbing_state(obs_dim), np.zeros(act_dim))) if absorbing and terminated else ()
+        # the trainer acts on what the student did; after a termination, on the absorbing state's self-loop too
+        a_t = trainer.actor.act(trainer_sees(aug(obs), action, s_abs if absorbing and terminated else aug(next_obs)))
+        a_t_absorbing = trainer.actor.act(trainer_sees(s_abs, np.zeros(act_dim), s_abs)) if absorbing and terminated else ()
         store(rb, obs, action, next_obs, reward, terminated, absorbing, a_t, a_t_absorbing)  # env reward: for CPR only
         obs = next_obs
         if terminated or truncated:

@@ -31,7 +31,7 @@ def f1_over_f0(T, s=0.008):
 
 def disc(**kw):
     torch.manual_seed(0)
-    base = dict(obs_dim=2, act_dim=1, hidden_dim=32, num_steps=100, lr=1e-3, obs_mean=np.zeros(2), obs_std=np.ones(2))
+    base = dict(in_dim=3, hidden_dim=32, num_steps=100, lr=1e-3, x_mean=np.zeros(3), x_std=np.ones(3))  # (s, a): 2 + 1
     return drail_disc.DiffusionDiscriminator(**(base | kw))
 
 
@@ -51,7 +51,7 @@ def test_antithetic_timesteps():
 
 
 def test_states_are_standardised_with_the_same_statistics_for_everyone():
-    d = disc(obs_mean=np.array([10.0, -5.0]), obs_std=np.array([2.0, 0.0]))  # a zero std is floored
+    d = disc(x_mean=np.array([10.0, -5.0, 0.0]), x_std=np.array([2.0, 0.0, 1.0]))  # a zero std is floored
     assert d.shift.tolist() == [10.0, -5.0, 0.0] and d.scale.tolist() == pytest.approx([2.0, 1e-3, 1.0])
 
 

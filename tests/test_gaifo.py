@@ -24,8 +24,7 @@ def setup(monkeypatch):
     demo_obs = np.array([[t, 0.0] for t in range(5)] + [[100 + t, 0.0] for t in range(5)], dtype=np.float32)
     demo_next = demo_obs + np.array([1.0, 0.0], dtype=np.float32)
     demo_next[4, 1] = demo_next[9, 1] = 1.0  # true final states
-    demos = {"observations": demo_obs, "next_observations": demo_next, "actions": np.zeros((10, 1), np.float32),
-             "terminations": np.zeros(10, bool)}
+    demos = {"observations": demo_obs, "next_observations": demo_next, "terminations": np.zeros(10, bool)}  # no actions
     expert = gaifo.expert_tensors(demos, args, -np.ones(1), np.ones(1), "cpu")
     seen = {}
     monkeypatch.setattr(disc, "update", lambda e, p: seen.update(expert_x=e, policy_x=p) or {})
@@ -35,7 +34,7 @@ def setup(monkeypatch):
 
 def test_pairs_are_consecutive_states_of_one_episode(monkeypatch):
     args, agent, disc, rb, expert, seen = setup(monkeypatch)
-    gaifo.gaifo_update(agent, disc, rb, expert, args)
+    gaifo.gail_update(agent, disc, rb, expert, args, state_only=True)
     s, s_next = seen["expert_x"][:, :2], seen["expert_x"][:, 2:]
     assert torch.equal(s_next[:, 0], s[:, 0] + 1)  # never (4, 100): the pair ends in the true final state
     s, s_next = seen["policy_x"][:, :2], seen["policy_x"][:, 2:]
@@ -45,7 +44,7 @@ def test_pairs_are_consecutive_states_of_one_episode(monkeypatch):
 
 def test_reward_comes_from_the_current_state_pair_discriminator(monkeypatch):
     args, agent, disc, rb, expert, seen = setup(monkeypatch)
-    gaifo.gaifo_update(agent, disc, rb, expert, args)
+    gaifo.gail_update(agent, disc, rb, expert, args, state_only=True)
     obs, actions, next_obs, rewards, _ = seen["batch"]
     assert torch.allclose(rewards, gaifo.gail_reward(disc(torch.cat([obs, next_obs], -1)), "softplus"))
     assert not hasattr(gaifo.Args(), "expert_action_noise")  # the expert's actions are never used

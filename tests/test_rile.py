@@ -76,8 +76,9 @@ def test_student_reward_is_the_trainers_action_on_that_batch():
     student, trainer, disc, rb, expert, state = learners(args)
     obs, actions = torch.randn(5, OBS), torch.rand(5, ACT)
     a_t = trainer.actor.deterministic(torch.cat([obs, actions], -1)).squeeze(-1)
-    assert torch.equal(rile.student_reward(trainer.actor, obs, actions, "none"), a_t)
-    assert torch.allclose(rile.student_reward(trainer.actor, obs, actions, "survival"), (1 + a_t) / 2)
+    obs_t = rile.trainer_input(obs, actions, None, "state-action")
+    assert torch.equal(rile.student_reward(trainer.actor, obs_t, "none"), a_t)
+    assert torch.allclose(rile.student_reward(trainer.actor, obs_t, "survival"), (1 + a_t) / 2)
 
 
 def test_update_relabels_the_student_batch_with_the_current_trainer(monkeypatch):
@@ -231,11 +232,13 @@ def test_saved_reward_round_trip(tmp_path):
     with torch.no_grad():
         for p in list(trainer2.actor.parameters()) + list(disc2.parameters()):
             p.add_(1.0)
-    rile.load_reward(str(tmp_path / "reward.pt"), trainer2, disc2, args.env_id, OBS, ACT, "survival")
+    rile.load_reward(str(tmp_path / "reward.pt"), trainer2, disc2, args, OBS, ACT)
     x = torch.randn(7, OBS + ACT)
     assert torch.equal(trainer2.actor.deterministic(x), trainer.actor.deterministic(x)) and torch.equal(disc2(x), disc(x))
     with pytest.raises(SystemExit, match="learned on Hopper-v4, not Walker2d-v4"):
-        rile.load_reward(str(tmp_path / "reward.pt"), trainer2, disc2, "Walker2d-v4", OBS, ACT, "survival")
+        rile.load_reward(str(tmp_path / "reward.pt"), trainer2, disc2, tiny_args(env_id="Walker2d-v4"), OBS, ACT)
+    with pytest.raises(SystemExit, match="learned with --state-only False"):
+        rile.load_reward(str(tmp_path / "reward.pt"), trainer2, disc2, tiny_args(state_only=True), OBS, ACT)
 
 
 # ---------------------------------------------------------------- end to end
