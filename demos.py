@@ -63,6 +63,10 @@ ALIASES = {  # common name -> key names found in the wild, first match wins
 }
 FORMATS = ("auto", "npz", "pickle", "d4rl", "minari", "imitation")
 REPLAY_STEPS = 10
+# relative error allowed in the replay. From a reset it is ~1e-7; from mid-episode rows, rewards differ by up to
+# ~1% (Ant): after mj_step the body positions the env measures progress from are one substep old, which a state
+# set from an observation cannot recreate. Wrong envs, action units or misaligned rows are far off.
+REPLAY_TOL = 0.02
 
 
 def fail(message: str):
@@ -375,7 +379,7 @@ def replay(demos: dict, env: gym.Env) -> str:
         obs_err = max(obs_err, float(np.max(np.abs(next_obs - want) / (1 + np.abs(want)))))
         if not np.isnan(demos["rewards"][t]):
             rew_err = max(rew_err, abs(reward - float(demos["rewards"][t])) / (1 + abs(reward)))
-        if obs_err > 1e-3 or rew_err > 1e-3 or terminated != demos["terminations"][t]:
+        if obs_err > REPLAY_TOL or rew_err > REPLAY_TOL or terminated != demos["terminations"][t]:
             fail(f"replay: step {t} of the first episode on {env.spec.id} does not reproduce the data (relative error "
                  f"obs {obs_err:.2g}, reward {rew_err:.2g}, terminated {terminated}): wrong env or version? "
                  f"--skip-replay writes the file anyway")
@@ -444,7 +448,7 @@ def convert(args, argv) -> None:
         fail(f"{out} exists; pass --force to replace it or --out to write elsewhere")
     try:
         env = gym.make(args.env_id)
-    except gym.error.Error as e:
+    except (gym.error.Error, ImportError) as e:
         fail(f"cannot make environment '{args.env_id}' ({e})")
     if not isinstance(env.action_space, gym.spaces.Box) or not isinstance(env.observation_space, gym.spaces.Box):
         fail(f"'{args.env_id}' needs Box observation and action spaces")
@@ -484,7 +488,7 @@ def info(args) -> None:
     if args.check:
         try:
             env = gym.make(meta.get("env_id"))
-        except gym.error.Error as e:
+        except (gym.error.Error, ImportError) as e:
             fail(f"cannot make the file's environment '{meta.get('env_id')}' ({e})")
         meta["checks"] = check(demos, env)
     print(summary(args.file, demos, meta))
