@@ -27,7 +27,7 @@ How episodes are built (one function, `build_episodes`, for every format):
     source's next row is the next episode's reset), so it is dropped and the shortened episode ends
     as a truncation. The summary says how many rows were dropped.
   - Without rewards, rewards and returns are NaN. Without actions the file is state-only: it has no
-    `actions` key, and only the state-only methods (GAIfO, BCO) can use it.
+    `actions` key, for the state-only methods (gaifo.py, bco.py, rile.py and drail_disc.py --state-only).
 
 Before writing, the data are checked against `gym.make(ENV)`: observation and action dims, actions
 inside the action box (`--actions-unit normalized` rescales [-1, 1] actions, as IQ-Learn stores

@@ -206,3 +206,19 @@ def test_drail_from_states_only(run, tmp_path, variant):
     disc = torch.load(tmp_path / "runs/d/disc.pt", weights_only=False)["disc"]
     half = len(disc["shift"]) // 2  # x = (s, s'), both halves standardised with the expert's state statistics
     assert len(disc["shift"]) == 2 * 5 and torch.equal(disc["shift"][:half], disc["shift"][half:])
+
+
+def test_demonstrations_from_elsewhere_without_actions_or_rewards(run, tmp_path):
+    """The path of motion-capture-like data: a plain npz of states and episode ends, converted by demos.py,
+    imitated by gaifo.py; with no rewards there is no expert return to normalise by."""
+    with np.load(PENDULUM) as f:
+        end = int(f["episode_lengths"][:2].sum())
+        np.savez(tmp_path / "mocap.npz", observations=f["observations"][:end], next_observations=f["next_observations"][:end],
+                 terminals=f["terminations"][:end], timeouts=f["truncations"][:end])
+    out = run("demos.py", "convert", "mocap.npz", "--env-id", "InvertedPendulum-v4", "--out", "states.npz").stdout
+    assert "state-only" in out
+    run("gaifo.py", "--env-id", "InvertedPendulum-v4", "--expert-path", "states.npz", "--num-expert-trajs", "2",
+        "--total-timesteps", "300", "--learning-starts", "200", "--eval-freq", "300", "--eval-episodes", "1",
+        "--hidden-dim", "32", "--batch-size", "32", "--run-name", "m")
+    results = json.loads((tmp_path / "runs/m/results.json").read_text())
+    assert results["finished"] and results["expert_return"] is None and results["final_normalized_return"] is None
