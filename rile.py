@@ -241,7 +241,8 @@ class Discriminator(nn.Module):
         self.optimizer.zero_grad(set_to_none=False)
         loss.backward()
         self.optimizer.step()
-        return {"losses/disc_loss": bce, "losses/disc_gp": gp, "disc/expert_prob": expert_prob, "disc/policy_prob": policy_prob}
+        metrics = {"losses/disc_loss": bce, "losses/disc_gp": gp, "disc/expert_prob": expert_prob, "disc/policy_prob": policy_prob}
+        return {name: value.detach() for name, value in metrics.items()}
 
     @torch.no_grad()
     def prob(self, x):
@@ -587,7 +588,7 @@ class SAC:
         with torch.no_grad():
             torch._foreach_lerp_(list(self.qf_target.parameters()), list(self.qf.parameters()), self.tau)
         metrics = dict(qf_loss=qf_loss, qf_values=q_mean, actor_loss=actor_loss, alpha_loss=alpha_loss, entropy=entropy)
-        return {prefix + name: value.detach() for name, value in metrics.items()} | {prefix + "alpha": self.log_alpha.exp()}
+        return {prefix + name: value.detach() for name, value in metrics.items()} | {prefix + "alpha": self.log_alpha.exp().detach()}
 
     def parts(self) -> dict:
         parts = dict(actor=self.actor, qf=self.qf, qf_target=self.qf_target, q_optimizer=self.q_optimizer,
