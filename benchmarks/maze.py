@@ -12,7 +12,9 @@
    the lengths and widths that keep the experiment short on a CPU (--learning-starts 1000, --eval-episodes 2,
    --hidden-dim 64 for the SAC networks and rile.py's trainer: a 2-D point needs no wider ones), in
    --segments segments of --segment-steps env steps (`reward_dynamics.py train`: one --resume per segment,
-   the learned reward kept after each).
+   the learned reward kept after each). rile.py runs twice: as it is, and with --no-trainer-freeze, because
+   its default freeze rule stops the trainer (the student's reward) after ~11k steps of this maze, so the
+   picture of the default run stops changing there.
 3. Figure 1 (benchmarks/results/maze_rewards.png): one row per method, one column per quarter of
    training; each panel is the learned reward on a grid of positions (`Snapshot.state_reward`: at each
    position s, the reward of the pair (s, pi(s)) with pi(s) the same snapshot's deterministic action; for
@@ -26,7 +28,6 @@
 import argparse
 import json
 import os
-import subprocess
 import sys
 import tempfile
 import time
@@ -43,7 +44,12 @@ from benchmarks.reward_dynamics import Snapshot, measure, plot_dynamics, snapsho
 ENV_ID = "benchmarks.maze_env:UMaze-v0"
 EXPERT_PATH = os.path.join("experts", "UMaze-v0.npz")
 RESULTS = os.path.join(ROOT, "benchmarks", "results")
-METHODS = ("rile", "gail", "airl")
+METHODS = {  # name: (script, its flags beyond the shared ones)
+    "rile": ("rile.py", []),
+    "rile-nofreeze": ("rile.py", ["--no-trainer-freeze"]),  # the default freezes the trainer at ~11k steps here
+    "gail": ("gail.py", []),
+    "airl": ("airl.py", []),
+}
 
 
 # ---------------------------------------------------------------- the demonstration
@@ -145,12 +151,12 @@ def run_name(method: str, seed: int) -> str:
     return f"maze__{method}__{seed}"
 
 
-def figures(seed: int, quarters: int = 4) -> dict:
+def figures(methods, seed: int, quarters: int = 4) -> dict:
     """Both figures from the runs' snapshots; returns the numbers quoted in the README."""
     expert = np.load(EXPERT_PATH)
     expert_path = np.concatenate([expert["observations"][:1], expert["next_observations"]])
     rows, histories, summary = {}, {}, {}
-    for method in METHODS:
+    for method in methods:
         run_dir = os.path.join("runs", run_name(method, seed))
         steps = snapshots(run_dir)
         chosen = [steps[round((q + 1) * len(steps) / quarters) - 1] for q in range(quarters)]
@@ -174,7 +180,7 @@ def main(argv=None):
     parser.add_argument("command", choices=("run", "plot"))
     parser.add_argument("--methods", nargs="+", default=list(METHODS), choices=METHODS)
     parser.add_argument("--seed", type=int, default=1)
-    parser.add_argument("--segment-steps", type=int, default=2500)
+    parser.add_argument("--segment-steps", type=int, default=4000)
     parser.add_argument("--segments", type=int, default=8)
     parser.add_argument("--learning-starts", type=int, default=1000)
     parser.add_argument("--hidden-dim", type=int, default=64, help="width of the SAC (and rile.py's trainer) networks")
@@ -185,16 +191,16 @@ def main(argv=None):
             record_demonstration()
         total = args.segment_steps * args.segments
         for method in args.methods:
-            start = time.time()
-            train_segments(f"{method}.py", run_name(method, args.seed), args.segment_steps, args.segments,
+            start, (script, flags) = time.time(), METHODS[method]
+            train_segments(script, run_name(method, args.seed), args.segment_steps, args.segments,
                            ["--env-id", ENV_ID, "--expert-path", EXPERT_PATH, "--num-expert-trajs", "1", "--seed",
                             str(args.seed), "--learning-starts", str(args.learning_starts), "--eval-freq",
                             str(args.segment_steps), "--eval-episodes", "2", "--buffer-size", str(total + 1),
-                            "--checkpoint-freq", "0", "--hidden-dim", str(args.hidden_dim)]
+                            "--checkpoint-freq", "0", "--hidden-dim", str(args.hidden_dim), *flags]
                            + (["--dynamics-freq", str(args.segment_steps), "--trainer-hidden-dim", str(args.hidden_dim)]
-                              if method == "rile" else []))
+                              if script == "rile.py" else []))
             print(f"{method}: {total} steps in {time.time() - start:.0f} s", flush=True)
-    summary = figures(args.seed)
+    summary = figures(args.methods, args.seed)
     with open(os.path.join(RESULTS, "maze.json"), "w") as f:
         json.dump(summary, f, indent=1)
     print(f"wrote {os.path.join(RESULTS, 'maze_rewards.png')}, maze_dynamics.png and maze.json")
