@@ -220,21 +220,24 @@ def plot_dynamics(histories: dict, path: str, title: str = "") -> None:
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest="command", required=True)
-    p = sub.add_parser("train", help="train a script in segments, keeping a snapshot after each")
+    p = sub.add_parser("train", help="train a script in segments, keeping a snapshot after each; flags this tool "
+                       "does not know (after --) go to the script", allow_abbrev=False)
     p.add_argument("script")
     p.add_argument("--run-name", required=True)
     p.add_argument("--segment-steps", type=int, default=10_000)
     p.add_argument("--segments", type=int, default=10)
-    p.add_argument("extra", nargs="*", help="the script's own flags, after --")
     p = sub.add_parser("measure", help="RFDC, FS-RFDC and CPR of a run's snapshots")
     p.add_argument("run_dir")
     p = sub.add_parser("plot", help="plot the measured dynamics of several runs")
     p.add_argument("run_dirs", nargs="+")
     p.add_argument("--out", required=True)
-    args = parser.parse_args(argv)
+    args, extra = parser.parse_known_args(argv)
+    extra = [a for a in extra if a != "--"]
+    if extra and args.command != "train":
+        parser.error(f"unrecognized arguments: {' '.join(extra)}")
     torch.set_num_threads(1)
     if args.command == "train":
-        print(train_segments(args.script, args.run_name, args.segment_steps, args.segments, args.extra))
+        print(train_segments(args.script, args.run_name, args.segment_steps, args.segments, extra))
     elif args.command == "measure":
         for h in measure(args.run_dir):
             print(json.dumps(h))
