@@ -231,6 +231,7 @@ def main(argv=None):
     p = sub.add_parser("plot", help="plot the measured dynamics of several runs")
     p.add_argument("run_dirs", nargs="+")
     p.add_argument("--out", required=True)
+    p.add_argument("--title", default="")
     args, extra = parser.parse_known_args(argv)
     extra = [a for a in extra if a != "--"]
     if extra and args.command != "train":
@@ -242,7 +243,7 @@ def main(argv=None):
         for h in measure(args.run_dir):
             print(json.dumps(h))
     else:
-        plot_dynamics({os.path.basename(d.rstrip("/")): measure(d) for d in args.run_dirs}, args.out)
+        plot_dynamics({os.path.basename(d.rstrip("/")): measure(d) for d in args.run_dirs}, args.out, args.title)
         print(f"wrote {args.out}")
 
 

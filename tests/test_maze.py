@@ -147,11 +147,11 @@ def test_measure_constant_rewards_by_hand(tmp_path):
 def test_segments_reproduce_rile_dynamics(tmp_path):
     """rile.py trained in two resume segments: the snapshots' measured dynamics equal its own dynamics.json."""
     maze.record_demonstration("experts/UMaze-v0.npz")
-    run_dir = reward_dynamics.train_segments(
-        "rile.py", "tiny", 300, 2, ["--env-id", maze.ENV_ID, "--expert-path", "experts/UMaze-v0.npz", "--num-expert-trajs",
-                                    "1", "--learning-starts", "100", "--hidden-dim", "16", "--trainer-hidden-dim", "16",
-                                    "--batch-size", "16", "--trainer-batch-size", "16", "--eval-episodes", "1",
-                                    "--buffer-size", "1000", "--dynamics-freq", "300"], log=open(os.devnull, "w"))
+    flags = ["--env-id", maze.ENV_ID, "--expert-path", "experts/UMaze-v0.npz", "--num-expert-trajs", "1",
+             "--learning-starts", "100", "--hidden-dim", "16", "--trainer-hidden-dim", "16", "--batch-size", "16",
+             "--trainer-batch-size", "16", "--eval-episodes", "1", "--buffer-size", "1000", "--dynamics-freq", "300"]
+    with open(os.devnull, "w") as devnull:
+        run_dir = reward_dynamics.train_segments("rile.py", "tiny", 300, 2, flags, log=devnull)
     assert reward_dynamics.snapshots(run_dir) == [300, 600]
     own = json.load(open(os.path.join(run_dir, "dynamics.json")))
     measured = reward_dynamics.measure(run_dir)
@@ -171,3 +171,12 @@ def test_plots_on_tiny_data(tmp_path):
     reward_dynamics.plot_dynamics({"a": history, "b": history[:1]}, str(tmp_path / "dyn.png"), title="tiny")
     for name in ("land.png", "dyn.png"):
         assert (tmp_path / name).stat().st_size > 1000
+
+
+def test_train_command_passes_the_scripts_flags(monkeypatch):
+    calls = []
+    monkeypatch.setattr(reward_dynamics, "train_segments", lambda *a: calls.append(a) or "runs/x")
+    reward_dynamics.main(["train", "gail.py", "--run-name", "x", "--segments", "3", "--", "--env-id", "Hopper-v4", "--seed", "2"])
+    assert calls == [("gail.py", "x", 10_000, 3, ["--env-id", "Hopper-v4", "--seed", "2"])]
+    with pytest.raises(SystemExit):
+        reward_dynamics.main(["measure", "runs/x", "--seed", "2"])
