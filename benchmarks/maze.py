@@ -22,7 +22,9 @@
    airl.py its reward term g(s, pi(s))), its colours normalised per method over its four panels; the
    expert's path in white and the student's path (one deterministic episode of the snapshot's actor) in red.
 4. Figure 2 (benchmarks/results/maze_dynamics.png): RFDC, FS-RFDC and CPR after every segment, measured
-   the same way for the three methods (`reward_dynamics.measure`).
+   the same way for every run (`reward_dynamics.measure`).
+5. benchmarks/results/maze.json: per run and snapshot, the student's final distance to the goal and the
+   mean reward over each cell of the way from start to goal; per run, the measured dynamics.
 """
 
 import argparse
@@ -114,6 +116,14 @@ def rollout(actor, seed: int = 0) -> np.ndarray:
     return np.asarray(path)
 
 
+def cell_means(grid) -> list:
+    """The mean of a reward grid over each free cell, in the order of the shortest way from start to goal."""
+    xs, ys, values = grid
+    way = maze_env.shortest_path(maze_env.find_cell("S"), maze_env.find_cell("G"))
+    in_cell = lambda coords, k: (coords >= k) & (coords < k + 1)
+    return [round(float(values[np.ix_(in_cell(ys, j), in_cell(xs, i))].mean()), 3) for i, j in way]
+
+
 def plot_landscapes(rows: dict, expert_path: np.ndarray, path: str) -> None:
     """rows: {method: [(label, (xs, ys, values), student_path), ...]}, one figure row per method; the colour
     scale is shared by a method's panels (its min..max over them), walls grey."""
@@ -167,7 +177,8 @@ def figures(methods, seed: int, quarters: int = 4) -> dict:
             grid = reward_grid(snap.state_reward)
             end = maze_env.UMaze().distance_to_goal(student[-1])
             rows[method].append((f"{100 * (q + 1) // quarters}% ({step / 1000:g}k steps)", grid, student))
-            summary[method][step] = {"student_final_distance_to_goal": round(float(end), 3)}
+            summary[method][step] = {"student_final_distance_to_goal": round(float(end), 3),
+                                     "mean_reward_per_cell_start_to_goal": cell_means(grid)}
         histories[method] = measure(run_dir)
         summary[method]["dynamics"] = histories[method]
     plot_landscapes(rows, expert_path, os.path.join(RESULTS, "maze_rewards.png"))

@@ -180,3 +180,8 @@ def test_train_command_passes_the_scripts_flags(monkeypatch):
     assert calls == [("gail.py", "x", 10_000, 3, ["--env-id", "Hopper-v4", "--seed", "2"])]
     with pytest.raises(SystemExit):
         reward_dynamics.main(["measure", "runs/x", "--seed", "2"])
+
+
+def test_cell_means_follow_the_way_to_the_goal():
+    grid = maze.reward_grid(lambda p: p[:, 0] + 10 * p[:, 1], resolution=4)
+    assert maze.cell_means(grid) == [36.5, 37.5, 38.5, 28.5, 18.5, 17.5, 16.5]  # centres' x + 10 y, S to G
