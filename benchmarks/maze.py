@@ -163,12 +163,17 @@ def run_name(method: str, seed: int) -> str:
 
 def figures(methods, seed: int, quarters: int = 4) -> dict:
     """Both figures from the runs' snapshots; returns the numbers quoted in the README."""
+    if not os.path.exists(EXPERT_PATH):
+        raise SystemExit(f"error: no {EXPERT_PATH} here; run `python benchmarks/maze.py run` from the repository root")
     expert = np.load(EXPERT_PATH)
     expert_path = np.concatenate([expert["observations"][:1], expert["next_observations"]])
     rows, histories, summary = {}, {}, {}
     for method in methods:
         run_dir = os.path.join("runs", run_name(method, seed))
         steps = snapshots(run_dir)
+        if len(steps) < quarters:
+            raise SystemExit(f"error: {run_dir} has {len(steps)} snapshots, the figure needs {quarters}; "
+                             f"train it with `python benchmarks/maze.py run --methods {method}` (--segments >= {quarters})")
         chosen = [steps[round((q + 1) * len(steps) / quarters) - 1] for q in range(quarters)]
         rows[method], summary[method] = [], {}
         for q, step in enumerate(chosen):
