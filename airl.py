@@ -37,10 +37,19 @@ Implementation choices and deviations
    alike; (b) the SAC reward at the absorbing state is the lowest g of the batch's living transitions
    (detached), the largest value at which ending an episode never beats any step the learner takes.
    Use `learned` where the demonstrations themselves end in terminations (goal-reaching tasks).
+8. The logit has a free level: f + b - log pi(a|s), b one scalar with its own learning rate
+   (`--disc-level-lr`, 1e-2; 0 removes it). The logit compares f with a log-density, whose level is
+   set by the policy, not the task: the BCE's balance puts f near the mean of log pi on the expert's
+   and the learner's actions, tens of nats below zero on Hopper-v4. Without b, g and h reached that
+   level (f = -32 everywhere at 20k steps, -50 by 50k in the 200k run) only by saturating their tanh
+   units, after which f's spread over states was 0.15 (20k steps) and SAC had almost nothing to learn
+   from. b takes the level at once, so g and h keep the shape of the reward. SAC is never paid b: a
+   constant changes no optimal policy on episodes that do not end, and with absorbing states the
+   anchor of 7 compares g with g.
 
 Logged metrics: charts/episodic_return, charts/SPS, eval/return, eval/normalized_return,
 losses/{qf_loss,qf_values,actor_loss,alpha_loss,alpha,entropy}, losses/disc_loss, losses/disc_gp,
-disc/expert_prob, disc/policy_prob, reward/learned_mean, reward/learned_std.
+disc/expert_prob, disc/policy_prob, disc/level (b), reward/learned_mean, reward/learned_std.
 """
 
 import json
@@ -142,6 +151,8 @@ class Args:
     """the discriminator learns from this many most recent agent transitions"""
     disc_gp: float = 1.0
     """weight of the one-centred gradient penalty"""
+    disc_level_lr: float = 1e-2
+    """learning rate of the logit's free level b (logit f + b - log pi; never paid to SAC); 0: no b"""
 
     # Imitation arguments
     expert_path: Optional[str] = None
@@ -164,13 +175,17 @@ class AIRLDiscriminator(nn.Module):
     """f(s, a, s') = g(s, a) + gamma (1 - terminated) h(s') - h(s); logit = f - log pi(a|s)."""
 
     def __init__(self, obs_dim: int, act_dim: int, hidden_dim: int, gamma: float, state_only: bool, lr: float,
-                 gp_weight: float, zero_absorbing_potential: bool = False):
+                 gp_weight: float, zero_absorbing_potential: bool = False, level_lr: float = 0.0):
         super().__init__()
         self.obs_dim, self.state_only, self.gamma, self.gp_weight = obs_dim, state_only, gamma, gp_weight
         self.zero_absorbing_potential = zero_absorbing_potential  # h(s_abs) = 0; the last obs column flags s_abs
         self.g = mlp(obs_dim if state_only else obs_dim + act_dim, hidden_dim)
         self.h = mlp(obs_dim, hidden_dim)
-        self.optimizer = torch.optim.Adam(self.parameters(), lr=lr)
+        groups = [{"params": list(self.g.parameters()) + list(self.h.parameters())}]
+        self.register_parameter("level", nn.Parameter(torch.zeros(())) if level_lr > 0 else None)  # b in the logit
+        if self.level is not None:
+            groups.append({"params": [self.level], "lr": level_lr})
+        self.optimizer = torch.optim.Adam(groups, lr=lr)
 
     def reward_g(self, obs, actions):
         return self.g(obs if self.state_only else torch.cat([obs, actions], -1)).squeeze(-1)
@@ -185,10 +200,11 @@ class AIRLDiscriminator(nn.Module):
         return self.reward_g(obs, actions) + self.gamma * (1 - terminations) * self.potential(next_obs) - self.potential(obs)
 
     def loss(self, expert: tuple, policy: tuple, expert_log_pi, policy_log_pi):
-        """BCE on logits f - log pi (expert = 1) + gp_weight E[(||grad f(x_hat)|| - 1)^2], x_hat between
+        """BCE on logits f + b - log pi (expert = 1) + gp_weight E[(||grad f(x_hat)|| - 1)^2], x_hat between
         expert and agent (s, a, s'); `expert` and `policy` are (obs, actions, next_obs, terminations)."""
-        expert_logits = self(*expert) - expert_log_pi
-        policy_logits = self(*policy) - policy_log_pi
+        level = 0.0 if self.level is None else self.level
+        expert_logits = self(*expert) + level - expert_log_pi
+        policy_logits = self(*policy) + level - policy_log_pi
         bce = (F.binary_cross_entropy_with_logits(expert_logits, torch.ones_like(expert_logits))
                + F.binary_cross_entropy_with_logits(policy_logits, torch.zeros_like(policy_logits)))
         eps = torch.rand(len(expert[0]), 1, device=expert[0].device)
@@ -205,6 +221,8 @@ class AIRLDiscriminator(nn.Module):
         loss.backward()
         self.optimizer.step()
         metrics = {"losses/disc_loss": bce, "losses/disc_gp": gp, "disc/expert_prob": expert_prob, "disc/policy_prob": policy_prob}
+        if self.level is not None:
+            metrics["disc/level"] = self.level
         return {name: value.detach() for name, value in metrics.items()}
 
 
@@ -819,7 +837,8 @@ if __name__ == "__main__":
     aug_dim = obs_dim + absorbing  # with absorbing states, every stored observation has the indicator column
     agent = SAC(aug_dim, act_dim, low, high, args, device, absorbing=absorbing)
     disc = AIRLDiscriminator(aug_dim, act_dim, args.disc_hidden_dim, args.gamma, args.state_only, args.disc_lr,
-                             args.disc_gp, zero_absorbing_potential=absorbing and args.absorbing_anchor == "min").to(device)
+                             args.disc_gp, zero_absorbing_potential=absorbing and args.absorbing_anchor == "min",
+                             level_lr=args.disc_level_lr).to(device)
     rb = ReplayBuffer(aug_dim, act_dim, args.buffer_size, device)
     stateful = {"agent": agent, "disc": disc, "disc_optimizer": disc.optimizer, "replay_buffer": rb}
     run = Run(args, checkpoint, stateful, float(demos["episode_returns"].mean()), device)

@@ -34,7 +34,8 @@ def main():
     agent.load_state_dict(ckpt["agent"])
     anchor = ckpt["config"].get("absorbing_anchor", "learned")  # runs older than the flag learned f at s_abs
     disc = airl.AIRLDiscriminator(obs_dim + 1, act_dim, args.disc_hidden_dim, args.gamma, args.state_only,
-                                  args.disc_lr, args.disc_gp, zero_absorbing_potential=anchor == "min")
+                                  args.disc_lr, args.disc_gp, zero_absorbing_potential=anchor == "min",
+                                  level_lr=ckpt["config"].get("disc_level_lr", 0.0))
     disc.load_state_dict(ckpt["disc"])
     rb = airl.ReplayBuffer(obs_dim + 1, act_dim, args.buffer_size, device)
     rb.load_state_dict(ckpt["replay_buffer"])

@@ -144,3 +144,23 @@ def test_absorbing_anchor_by_hand():
     disc.zero_absorbing_potential = False  # DAC's learned absorbing state: h(s_abs) = 2 + 1 = 3 is learned too
     assert disc(batch.obs, batch.actions, batch.next_obs, batch.terminations).tolist() == pytest.approx(
         [f[0], 2 + 0.9 * 3 - 3, 1 + 0.9 * 3 - 3])
+
+
+def test_free_level_enters_the_logit_not_the_reward():
+    """--disc-level-lr: logit f + b - log pi, b learned with its own rate; SAC's reward is f alone."""
+    disc = linear_disc(gamma=0.5)
+    disc.register_parameter("level", nn.Parameter(torch.tensor(2.0)))
+    disc.optimizer = torch.optim.Adam([{"params": list(disc.g.parameters()) + list(disc.h.parameters()), "lr": 0.0},
+                                       {"params": [disc.level], "lr": 0.1}])
+    zero = torch.tensor([0.0])
+    expert = (torch.tensor([[1.0, 0.0]]), torch.tensor([[0.0]]), torch.tensor([[0.0, 0.0]]), zero)
+    policy = (torch.tensor([[0.0, 0.0]]), torch.tensor([[1.0]]), torch.tensor([[1.0, 1.0]]), zero)
+    loss, bce, gp, expert_prob, policy_prob = disc.loss(expert, policy, torch.tensor([-1.0]), torch.tensor([0.5]))
+    f_expert, f_policy = -1.5, 2.5  # as in test_loss_and_gradient_penalty_by_hand
+    l_e, l_p = f_expert + 2.0 + 1.0, f_policy + 2.0 - 0.5
+    assert bce.item() == pytest.approx(np.log1p(np.exp(-l_e)) + np.log1p(np.exp(l_p)), rel=1e-6)
+    metrics = disc.update(expert, policy, torch.tensor([-1.0]), torch.tensor([0.5]))
+    assert disc.level.item() == pytest.approx(2.0 - 0.1)  # Adam's first step: lr times the gradient's sign (D(policy) high)
+    assert metrics["disc/level"].item() == pytest.approx(1.9)
+    batch = airl.Batch(*policy[:3], torch.zeros(1), policy[3], torch.zeros(1, 0))
+    assert airl.sac_reward(disc, batch, "f", anchor=False).item() == pytest.approx(f_policy)  # b is never paid
