@@ -172,7 +172,7 @@ def mlp(in_dim: int, hidden_dim: int) -> nn.Module:
 
 
 class AIRLDiscriminator(nn.Module):
-    """f(s, a, s') = g(s, a) + gamma (1 - terminated) h(s') - h(s); logit = f - log pi(a|s)."""
+    """f(s, a, s') = g(s, a) + gamma (1 - terminated) h(s') - h(s); logit = f + b - log pi(a|s), b = `level`."""
 
     def __init__(self, obs_dim: int, act_dim: int, hidden_dim: int, gamma: float, state_only: bool, lr: float,
                  gp_weight: float, zero_absorbing_potential: bool = False, level_lr: float = 0.0):
@@ -197,7 +197,8 @@ class AIRLDiscriminator(nn.Module):
 
     def forward(self, obs, actions, next_obs, terminations):
         """f(s, a, s'): the shaping term h(s') is masked by true terminations only."""
-        return self.reward_g(obs, actions) + self.gamma * (1 - terminations) * self.potential(next_obs) - self.potential(obs)
+        h, h_next = self.potential(obs), self.potential(next_obs)
+        return self.reward_g(obs, actions) + self.gamma * (1 - terminations) * h_next - h
 
     def loss(self, expert: tuple, policy: tuple, expert_log_pi, policy_log_pi):
         """BCE on logits f + b - log pi (expert = 1) + gp_weight E[(||grad f(x_hat)|| - 1)^2], x_hat between
