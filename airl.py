@@ -24,12 +24,32 @@ Implementation choices and deviations
 5. The learned reward g is saved to runs/<run>/reward.pt for reuse.
 6. `--termination-remedy absorbing` (DAC, as in gail.py; the default here, because f is signed and with
    terminations terminal the Hopper-v4 learner fell on purpose): terminations lead to an absorbing
-   state that loops to itself, for learner and expert alike; nothing is terminal any more, so h(s') is
-   never masked and h(s_abs) is learned; log pi at the absorbing state is 0 (its only action is zero).
+   state that loops to itself, for learner and expert alike; nothing is terminal any more; log pi at
+   the absorbing state is 0 (its only action is zero).
+7. The anchor at the absorbing state (`--absorbing-anchor min`, default; `learned` is DAC's learned
+   absorbing reward, as before). Falling at s and staying absorbed is worth g(s, a) - h(s) +
+   gamma g_abs / (1 - gamma), living sum_t gamma^t g_t - h(s): h telescopes, so only g_abs against the
+   learner's g decides whether falling pays. Demonstrations that never end never reach the absorbing
+   state, so AIRL does not identify g_abs there (g = r + const holds on the expert's support only); the
+   discriminator pushes it down only until D(s_abs) is near 0, and on Hopper-v4 it stopped level with
+   the learner's living f (README). `min` fixes what the data leave open: (a) h(s_abs) = 0, the
+   potential of a terminal state in Ng et al.'s shaping theorem, in the discriminator and the reward
+   alike; (b) the SAC reward at the absorbing state is the lowest g of the batch's living transitions
+   (detached), the largest value at which ending an episode never beats any step the learner takes.
+   Use `learned` where the demonstrations themselves end in terminations (goal-reaching tasks).
+8. The logit has a free level: f + b - log pi(a|s), b one scalar with its own learning rate
+   (`--disc-level-lr`, 1e-2; 0 removes it). The logit compares f with a log-density, whose level is
+   set by the policy, not the task: the BCE's balance puts f near the mean of log pi on the expert's
+   and the learner's actions, tens of nats below zero on Hopper-v4. Without b, g and h reached that
+   level (f = -32 everywhere at 20k steps, -50 by 50k in the 200k run) only by saturating their tanh
+   units, after which f's spread over states was 0.15 (20k steps) and SAC had almost nothing to learn
+   from. b takes the level at once, so g and h keep the shape of the reward. SAC is never paid b: a
+   constant changes no optimal policy on episodes that do not end, and with absorbing states the
+   anchor of 7 compares g with g.
 
 Logged metrics: charts/episodic_return, charts/SPS, eval/return, eval/normalized_return,
 losses/{qf_loss,qf_values,actor_loss,alpha_loss,alpha,entropy}, losses/disc_loss, losses/disc_gp,
-disc/expert_prob, disc/policy_prob, reward/learned_mean, reward/learned_std.
+disc/expert_prob, disc/policy_prob, disc/level (b), reward/learned_mean, reward/learned_std.
 """
 
 import json
@@ -112,6 +132,9 @@ class Args:
     termination_remedy: Literal["none", "absorbing"] = "absorbing"
     """absorbing: DAC's absorbing states for agent and expert data (default); none: a termination ends
     bootstrapping, and a negative f then pays the agent to fall (on Hopper-v4 it did, see README)"""
+    absorbing_anchor: Literal["min", "learned"] = "min"
+    """with absorbing states: min (h(s_abs) = 0 and the reward at s_abs is the batch's lowest living g,
+    so falling never pays) or learned (the discriminator's own f at s_abs, DAC's treatment)"""
     eval_freq: int = 10_000
     """evaluate the deterministic policy every this many env steps"""
     eval_episodes: int = 10
@@ -128,6 +151,8 @@ class Args:
     """the discriminator learns from this many most recent agent transitions"""
     disc_gp: float = 1.0
     """weight of the one-centred gradient penalty"""
+    disc_level_lr: float = 1e-2
+    """learning rate of the logit's free level b (logit f + b - log pi; never paid to SAC); 0: no b"""
 
     # Imitation arguments
     expert_path: Optional[str] = None
@@ -147,29 +172,40 @@ def mlp(in_dim: int, hidden_dim: int) -> nn.Module:
 
 
 class AIRLDiscriminator(nn.Module):
-    """f(s, a, s') = g(s, a) + gamma (1 - terminated) h(s') - h(s); logit = f - log pi(a|s)."""
+    """f(s, a, s') = g(s, a) + gamma (1 - terminated) h(s') - h(s); logit = f + b - log pi(a|s), b = `level`."""
 
     def __init__(self, obs_dim: int, act_dim: int, hidden_dim: int, gamma: float, state_only: bool, lr: float,
-                 gp_weight: float):
+                 gp_weight: float, zero_absorbing_potential: bool = False, level_lr: float = 0.0):
         super().__init__()
         self.obs_dim, self.state_only, self.gamma, self.gp_weight = obs_dim, state_only, gamma, gp_weight
+        self.zero_absorbing_potential = zero_absorbing_potential  # h(s_abs) = 0; the last obs column flags s_abs
         self.g = mlp(obs_dim if state_only else obs_dim + act_dim, hidden_dim)
         self.h = mlp(obs_dim, hidden_dim)
-        self.optimizer = torch.optim.Adam(self.parameters(), lr=lr)
+        groups = [{"params": list(self.g.parameters()) + list(self.h.parameters())}]
+        self.register_parameter("level", nn.Parameter(torch.zeros(())) if level_lr > 0 else None)  # b in the logit
+        if self.level is not None:
+            groups.append({"params": [self.level], "lr": level_lr})
+        self.optimizer = torch.optim.Adam(groups, lr=lr)
 
     def reward_g(self, obs, actions):
         return self.g(obs if self.state_only else torch.cat([obs, actions], -1)).squeeze(-1)
 
+    def potential(self, obs):
+        """h(s); 0 at the absorbing state with the absorbing anchor."""
+        h = self.h(obs).squeeze(-1)
+        return h * (1 - obs[:, -1]) if self.zero_absorbing_potential else h
+
     def forward(self, obs, actions, next_obs, terminations):
         """f(s, a, s'): the shaping term h(s') is masked by true terminations only."""
-        h, h_next = self.h(obs).squeeze(-1), self.h(next_obs).squeeze(-1)
+        h, h_next = self.potential(obs), self.potential(next_obs)
         return self.reward_g(obs, actions) + self.gamma * (1 - terminations) * h_next - h
 
     def loss(self, expert: tuple, policy: tuple, expert_log_pi, policy_log_pi):
-        """BCE on logits f - log pi (expert = 1) + gp_weight E[(||grad f(x_hat)|| - 1)^2], x_hat between
+        """BCE on logits f + b - log pi (expert = 1) + gp_weight E[(||grad f(x_hat)|| - 1)^2], x_hat between
         expert and agent (s, a, s'); `expert` and `policy` are (obs, actions, next_obs, terminations)."""
-        expert_logits = self(*expert) - expert_log_pi
-        policy_logits = self(*policy) - policy_log_pi
+        level = 0.0 if self.level is None else self.level
+        expert_logits = self(*expert) + level - expert_log_pi
+        policy_logits = self(*policy) + level - policy_log_pi
         bce = (F.binary_cross_entropy_with_logits(expert_logits, torch.ones_like(expert_logits))
                + F.binary_cross_entropy_with_logits(policy_logits, torch.zeros_like(policy_logits)))
         eps = torch.rand(len(expert[0]), 1, device=expert[0].device)
@@ -186,6 +222,8 @@ class AIRLDiscriminator(nn.Module):
         loss.backward()
         self.optimizer.step()
         metrics = {"losses/disc_loss": bce, "losses/disc_gp": gp, "disc/expert_prob": expert_prob, "disc/policy_prob": policy_prob}
+        if self.level is not None:
+            metrics["disc/level"] = self.level
         return {name: value.detach() for name, value in metrics.items()}
 
 
@@ -196,14 +234,26 @@ def policy_log_prob(agent: "SAC", obs, actions):
     return agent.actor.log_prob(obs[:, :-1], actions) * (1 - obs[:, -1])
 
 
+@torch.no_grad()
+def sac_reward(disc: AIRLDiscriminator, batch: "Batch", reward: str, anchor: bool):
+    """SAC's reward for a batch from the current networks: f (or g); with the absorbing anchor, the
+    absorbing state's reward is the lowest g among the batch's living transitions."""
+    rewards = disc(batch.obs, batch.actions, batch.next_obs, batch.terminations) if reward == "f" else \
+        disc.reward_g(batch.obs, batch.actions)
+    if not anchor:
+        return rewards
+    at_abs = batch.obs[:, -1] > 0
+    if at_abs.all():
+        return rewards
+    g_min = disc.reward_g(batch.obs, batch.actions)[~at_abs].min()
+    return torch.where(at_abs, g_min, rewards)
+
+
 def airl_update(agent: "SAC", disc: AIRLDiscriminator, rb: "ReplayBuffer", expert: dict, args) -> dict:
     """One SAC update on f (or g) from the current discriminator, then one discriminator update."""
     batch = rb.sample(args.batch_size)  # its env rewards are never used
-    with torch.no_grad():
-        if args.reward == "f":
-            rewards = disc(batch.obs, batch.actions, batch.next_obs, batch.terminations)
-        else:
-            rewards = disc.reward_g(batch.obs, batch.actions)
+    anchor = agent.absorbing and args.absorbing_anchor == "min"
+    rewards = sac_reward(disc, batch, args.reward, anchor)
     metrics = agent.update(batch.obs, batch.actions, batch.next_obs, rewards, batch.terminations, prefix="losses/")
     metrics.update({"reward/learned_mean": rewards.mean(), "reward/learned_std": rewards.std()})
     idx = torch.randint(0, len(expert["obs"]), (args.disc_batch_size,), device=expert["obs"].device)
@@ -781,13 +831,15 @@ if __name__ == "__main__":
     absorbing = args.termination_remedy == "absorbing"
     if absorbing:
         expert = absorbing_expert(expert)
-    print(f"AIRL reward: {args.reward}" + (" (state-only g)" if args.state_only else ""))
+    print(f"AIRL reward: {args.reward}" + (" (state-only g)" if args.state_only else "")
+          + (f"; absorbing states, anchor {args.absorbing_anchor}" if absorbing else ""))
 
     # ALGO LOGIC: the agent, the discriminator and the replay buffer
     aug_dim = obs_dim + absorbing  # with absorbing states, every stored observation has the indicator column
     agent = SAC(aug_dim, act_dim, low, high, args, device, absorbing=absorbing)
     disc = AIRLDiscriminator(aug_dim, act_dim, args.disc_hidden_dim, args.gamma, args.state_only, args.disc_lr,
-                             args.disc_gp).to(device)
+                             args.disc_gp, zero_absorbing_potential=absorbing and args.absorbing_anchor == "min",
+                             level_lr=args.disc_level_lr).to(device)
     rb = ReplayBuffer(aug_dim, act_dim, args.buffer_size, device)
     stateful = {"agent": agent, "disc": disc, "disc_optimizer": disc.optimizer, "replay_buffer": rb}
     run = Run(args, checkpoint, stateful, float(demos["episode_returns"].mean()), device)
@@ -815,7 +867,7 @@ if __name__ == "__main__":
 
     reward_file = {"g": disc.g.state_dict(), "h": disc.h.state_dict(), "env_id": args.env_id, "obs_dim": obs_dim,
                    "act_dim": act_dim, "hidden_dim": args.disc_hidden_dim, "state_only": args.state_only,
-                   "termination_remedy": args.termination_remedy}
+                   "termination_remedy": args.termination_remedy, "absorbing_anchor": args.absorbing_anchor}
     run.finish(agent.actor.act, {"actor.pt": actor_file(agent.actor, args.env_id, training_steps=args.total_timesteps),
                                  "reward.pt": reward_file})
     env.close()

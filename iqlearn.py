@@ -14,6 +14,11 @@ Implementation choices and deviations
    + value term + 1/(4 * 0.5) mean_both(r^2) (chi^2 over both batches, the online form). Value term:
    `value` = mean_both(V(s) - gamma (1 - d) V_targ(s')), or `v0` = (1 - gamma) mean_expert(V(s)) (on all
    expert states, as the authors' code does, not initial states only).
+   The chi^2 term regularises the divergence between the expert and the *current* policy, so on the
+   policy half it takes r at the current policy's action, Q(s, a~pi(s)) - gamma (1 - d) V_targ(s'), as
+   the authors' code does ("current policy for regularization instead of RB"; `--chi2-actions policy`,
+   default). `--chi2-actions replay` takes the stored action, i.e. the rewards of the older policies
+   that filled the buffer (this script's behaviour before issue 16).
 2. One Q network (the shared critic block with one head: twin-min critics diverge here), a target copy
    updated with tau 0.005 every step, fixed alpha, actor lr 3e-5 and critic lr 3e-4. `--preset`
    (default `auto`) takes the value variant and alpha of the IQ-Learn paper's scripts for the env
@@ -28,7 +33,8 @@ Implementation choices and deviations
 
 Logged metrics: charts/episodic_return, charts/SPS, eval/return, eval/normalized_return,
 losses/{softq,value,chi2,critic,actor}, losses/q_expert, losses/q_policy, reward/implicit_expert,
-reward/implicit_policy.
+reward/implicit_policy (replay actions), reward/implicit_current_policy (the current policy's actions on
+the replay states; with `--chi2-actions policy`).
 """
 
 import json
@@ -110,6 +116,8 @@ class Args:
     """the learning rate of the critic"""
     chi2_alpha: float = 0.5
     """the chi^2 regulariser is 1 / (4 chi2_alpha) mean(r^2)"""
+    chi2_actions: Literal["policy", "replay"] = "policy"
+    """the chi^2 term's action on policy states: policy (a ~ pi(s), the authors' code) or replay (the stored one)"""
     timeout_done: bool = False
     """count time-limit truncations as done (IQ-Learn's code) for expert and online data alike"""
     hidden_dim: int = 256
@@ -138,7 +146,7 @@ class IQLearn(nn.Module):
         self.q_target.load_state_dict(self.q.state_dict())
         self.q_target.requires_grad_(False)
         self.alpha, self.gamma, self.tau = args.alpha, args.gamma, args.tau
-        self.value_loss, self.chi2_coef = args.value_loss, 1.0 / (4 * args.chi2_alpha)
+        self.value_loss, self.chi2_coef, self.chi2_actions = args.value_loss, 1.0 / (4 * args.chi2_alpha), args.chi2_actions
         self.to(device)
         self.q_optimizer = torch.optim.Adam(self.q.parameters(), lr=args.q_lr)
         self.actor_optimizer = torch.optim.Adam(self.actor.parameters(), lr=args.policy_lr)
@@ -159,10 +167,18 @@ class IQLearn(nn.Module):
             value = (self.value(self.q, obs) - y).mean()
         else:  # v0: (1 - gamma) E[V(s)] on the expert's states
             value = (1 - self.gamma) * self.value(self.q, obs[is_expert]).mean()
-        chi2 = self.chi2_coef * reward.pow(2).mean()
+        chi2_reward = reward
+        if self.chi2_actions == "policy":  # on policy states, r at the current policy's action
+            with torch.no_grad():
+                policy_actions, _ = self.actor.sample(obs[~is_expert])
+            on_policy = self.q(obs[~is_expert], policy_actions)[0] - y[~is_expert]
+            chi2_reward = torch.cat([on_policy, reward[is_expert]])
+        chi2 = self.chi2_coef * chi2_reward.pow(2).mean()
         terms = {"losses/softq": softq, "losses/value": value, "losses/chi2": chi2, "losses/q_expert": q[is_expert].mean(),
                  "losses/q_policy": q[~is_expert].mean(), "reward/implicit_expert": reward[is_expert].mean(),
                  "reward/implicit_policy": reward[~is_expert].mean()}
+        if self.chi2_actions == "policy":
+            terms["reward/implicit_current_policy"] = on_policy.mean()  # the same states, the current policy's actions
         return softq + value + chi2, {name: term.detach() for name, term in terms.items()}
 
     def actor_loss(self, obs):
@@ -708,7 +724,7 @@ if __name__ == "__main__":
     expert = {name: torch.as_tensor(np.asarray(x, dtype=np.float32), device=device) for name, x in (
         ("obs", demos["observations"]), ("actions", demos["actions"]), ("next_obs", demos["next_observations"]),
         ("terminations", dones))}  # 'terminations': the done flag of --timeout-done, as in the replay buffer
-    print(f"IQ-Learn: {args.value_loss} value term, alpha {args.alpha}, "
+    print(f"IQ-Learn: {args.value_loss} value term, alpha {args.alpha}, chi^2 at {args.chi2_actions} actions, "
           f"{'truncations count as done' if args.timeout_done else 'only terminations are done'}")
 
     # ALGO LOGIC: the agent and the online buffer ('terminated' holds the done flag of --timeout-done)

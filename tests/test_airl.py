@@ -118,3 +118,49 @@ def test_log_pi_with_absorbing_states():
     actions = torch.tensor([[0.2], [0.0]])
     log_pi = airl.policy_log_prob(agent, obs, actions)
     assert log_pi[0].item() == pytest.approx(agent.actor.log_prob(obs[:1, :2], actions[:1]).item()) and log_pi[1].item() == 0.0
+
+
+def test_absorbing_anchor_by_hand():
+    """--absorbing-anchor min: h(s_abs) = 0 in f, and SAC's reward at s_abs is the batch's lowest living g."""
+    disc = airl.AIRLDiscriminator(3, 1, 8, 0.9, state_only=False, lr=1e-3, gp_weight=1.0, zero_absorbing_potential=True)
+    disc.g, disc.h = nn.Linear(4, 1), nn.Linear(3, 1)  # g(s, a) = sum(s) + sum(a); h(s) = 2 sum(s) + 1
+    with torch.no_grad():
+        disc.g.weight.fill_(1.0)
+        disc.g.bias.zero_()
+        disc.h.weight.fill_(2.0)
+        disc.h.bias.fill_(1.0)
+    s_abs = [0.0, 0.0, 1.0]
+    batch = airl.Batch(obs=torch.tensor([[1.0, 2.0, 0.0], [1.0, 0.0, 0.0], s_abs]),  # living, falling, absorbed
+                       actions=torch.tensor([[0.5], [1.0], [0.0]]),
+                       next_obs=torch.tensor([[3.0, 1.0, 0.0], s_abs, s_abs]), rewards=torch.zeros(3),
+                       terminations=torch.zeros(3), extra=torch.zeros(3, 0))
+    # g = 3.5, 2, 1; h(s) = 7, 3, 0 (absorbing); h(s') = 9, 0, 0
+    f = [3.5 + 0.9 * 9 - 7, 2 - 3, 1.0]
+    assert disc(batch.obs, batch.actions, batch.next_obs, batch.terminations).tolist() == pytest.approx(f)
+    g_min = 2.0  # the lowest g among the living transitions (the first two)
+    assert airl.sac_reward(disc, batch, "f", anchor=True).tolist() == pytest.approx([f[0], f[1], g_min])
+    assert airl.sac_reward(disc, batch, "g", anchor=True).tolist() == pytest.approx([3.5, 2.0, g_min])
+    assert airl.sac_reward(disc, batch, "f", anchor=False).tolist() == pytest.approx(f)  # learned: f as it is
+    disc.zero_absorbing_potential = False  # DAC's learned absorbing state: h(s_abs) = 2 + 1 = 3 is learned too
+    assert disc(batch.obs, batch.actions, batch.next_obs, batch.terminations).tolist() == pytest.approx(
+        [f[0], 2 + 0.9 * 3 - 3, 1 + 0.9 * 3 - 3])
+
+
+def test_free_level_enters_the_logit_not_the_reward():
+    """--disc-level-lr: logit f + b - log pi, b learned with its own rate; SAC's reward is f alone."""
+    disc = linear_disc(gamma=0.5)
+    disc.register_parameter("level", nn.Parameter(torch.tensor(2.0)))
+    disc.optimizer = torch.optim.Adam([{"params": list(disc.g.parameters()) + list(disc.h.parameters()), "lr": 0.0},
+                                       {"params": [disc.level], "lr": 0.1}])
+    zero = torch.tensor([0.0])
+    expert = (torch.tensor([[1.0, 0.0]]), torch.tensor([[0.0]]), torch.tensor([[0.0, 0.0]]), zero)
+    policy = (torch.tensor([[0.0, 0.0]]), torch.tensor([[1.0]]), torch.tensor([[1.0, 1.0]]), zero)
+    loss, bce, gp, expert_prob, policy_prob = disc.loss(expert, policy, torch.tensor([-1.0]), torch.tensor([0.5]))
+    f_expert, f_policy = -1.5, 2.5  # as in test_loss_and_gradient_penalty_by_hand
+    l_e, l_p = f_expert + 2.0 + 1.0, f_policy + 2.0 - 0.5
+    assert bce.item() == pytest.approx(np.log1p(np.exp(-l_e)) + np.log1p(np.exp(l_p)), rel=1e-6)
+    metrics = disc.update(expert, policy, torch.tensor([-1.0]), torch.tensor([0.5]))
+    assert disc.level.item() == pytest.approx(2.0 - 0.1)  # Adam's first step: lr times the gradient's sign (D(policy) high)
+    assert metrics["disc/level"].item() == pytest.approx(1.9)
+    batch = airl.Batch(*policy[:3], torch.zeros(1), policy[3], torch.zeros(1, 0))
+    assert airl.sac_reward(disc, batch, "f", anchor=False).item() == pytest.approx(f_policy)  # b is never paid

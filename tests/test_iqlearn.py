@@ -51,6 +51,41 @@ def test_loss_terms_by_hand(monkeypatch, value_loss):
     assert loss.item() == pytest.approx(softq + value + chi2)
 
 
+class ActionQ(torch.nn.Module):
+    """Q(s, a) = sum(a) + c, shaped like the critic block's output (1, batch)."""
+
+    def __init__(self, c):
+        super().__init__()
+        self.c = torch.nn.Parameter(torch.tensor(c))
+
+    def forward(self, obs, actions, detach_params=False):
+        return (actions.sum(-1) + (self.c.detach() if detach_params else self.c)).unsqueeze(0)
+
+
+@pytest.mark.parametrize("chi2_actions", ["policy", "replay"])
+def test_chi2_on_policy_states_takes_the_current_policys_action(monkeypatch, chi2_actions):
+    """The authors' online regulariser: on policy states r = Q(s, a~pi(s)) - y, not Q(s, a_replay) - y."""
+    args = iqlearn.Args(hidden_dim=8, value_loss="value", alpha=0.1, gamma=0.9, chi2_actions=chi2_actions)
+    agent = iqlearn.IQLearn(2, 1, -np.ones(1), np.ones(1), args, "cpu")
+    agent.q, agent.q_target = ActionQ(2.0), ActionQ(3.0)
+    pi_action = 0.5  # the current policy's action everywhere, log pi = -1
+    monkeypatch.setattr(agent.actor, "sample", lambda obs: (torch.full((len(obs), 1), pi_action), torch.full((len(obs),), -1.0)))
+    obs, next_obs = torch.zeros(4, 2), torch.zeros(4, 2)
+    actions = torch.tensor([[-1.0], [0.25], [1.0], [0.0]])  # rows 0, 1: replay (old policies); rows 2, 3: expert
+    dones = torch.tensor([0.0, 1.0, 0.0, 0.0])
+    is_expert = torch.tensor([False, False, True, True])
+    loss, terms = agent.critic_loss(obs, actions, next_obs, dones, is_expert)
+    y = np.array([0.9, 0.0, 0.9, 0.9]) * (3.0 + pi_action + 0.1)  # gamma (1 - d) (Q_targ(s', a') - alpha log pi)
+    q_replay = 2.0 + actions[:, 0].numpy()
+    r = q_replay - y
+    r_chi2 = np.concatenate([2.0 + pi_action - y[:2], r[2:]]) if chi2_actions == "policy" else r
+    assert terms["losses/chi2"].item() == pytest.approx(0.5 * (r_chi2**2).mean(), abs=1e-5)
+    assert terms["reward/implicit_policy"].item() == pytest.approx(r[:2].mean(), abs=1e-5)  # logged at replay actions
+    assert terms["losses/softq"].item() == pytest.approx(-r[2:].mean(), abs=1e-5)
+    if chi2_actions == "policy":
+        assert terms["reward/implicit_current_policy"].item() == pytest.approx((2.0 + pi_action - y[:2]).mean(), abs=1e-5)
+
+
 def test_actor_loss_uses_both_batches_and_leaves_q_alone(monkeypatch):
     agent = agent_with(monkeypatch, "value")
     loss = agent.actor_loss(torch.zeros(6, 2))
@@ -70,7 +105,8 @@ def test_update_steps_the_critic_actor_and_target():
     expert = {"obs": torch.randn(4, 2), "actions": torch.rand(4, 1), "next_obs": torch.randn(4, 2), "terminations": torch.zeros(4)}
     metrics = agent.update(policy, expert)
     assert set(metrics) == {"losses/critic", "losses/actor", "losses/softq", "losses/value", "losses/chi2", "losses/q_expert",
-                            "losses/q_policy", "reward/implicit_expert", "reward/implicit_policy"}
+                            "losses/q_policy", "reward/implicit_expert", "reward/implicit_policy",
+                            "reward/implicit_current_policy"}
     assert all(torch.isfinite(value) for value in metrics.values())
     for old, online, new in zip(before, agent.q.parameters(), agent.q_target.parameters()):
         assert torch.allclose(new, 0.995 * old + 0.005 * online, atol=1e-6)
