@@ -301,3 +301,14 @@ def test_absorbing_states_end_to_end(run, tmp_path):
     proc = run("rile.py", *TINY, "--total-timesteps", "300", "--reward-from", "runs/abs/reward.pt",
                "--termination-remedy", "survival", check=False)
     assert proc.returncode != 0 and "learned with --termination-remedy absorbing" in proc.stderr
+    # benchmarks/rile_rewards.py reads the checkpoint: r_S at the absorbing state is the trainer's action on (s_abs, 0)
+    out = run("benchmarks/rile_rewards.py", "runs/abs").stdout
+    assert "at step 400" in out and "r_S on the demonstrations" in out and "one deterministic episode" in out
+    ckpt = torch.load(tmp_path / "runs/abs/checkpoint.pt", weights_only=False)
+    trainer = rile.Actor(5 + 1, 1, np.array([-1.0]), np.array([1.0]), ckpt["config"]["trainer_hidden_dim"])
+    trainer.load_state_dict(ckpt["trainer"]["actor"])
+    r_abs = trainer.deterministic(torch.tensor([[0.0, 0.0, 0.0, 0.0, 1.0, 0.0]])).item()
+    assert f"r_S at the absorbing state:               {r_abs:7.3f};" in out
+    run("rile.py", *TINY, "--total-timesteps", "210", "--run-name", "surv", "--termination-remedy", "survival")
+    proc = run("benchmarks/rile_rewards.py", "runs/surv", check=False)  # not an absorbing-state run
+    assert proc.returncode != 0 and "--termination-remedy survival" in proc.stderr

@@ -1,0 +1,83 @@
+"""What rile.py's learned reward r_S pays, read from a checkpoint: on the demonstrations, on the student's
+recent replay transitions, and at the absorbing state; then one deterministic episode of the student.
+Answers "is falling worth less than living, and is walking worth more than standing?" for a run with
+`--termination-remedy absorbing`: staying in the absorbing state forever is worth r_abs / (1 - gamma).
+
+    python benchmarks/rile_rewards.py runs/bench__Walker2d-v4__rile-absorbing__1 [--recent 20000]
+"""
+
+import argparse
+import os
+import sys
+
+import numpy as np
+import torch
+
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+import rile  # noqa: E402
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("run_dir")
+    parser.add_argument("--recent", type=int, default=20000, help="how many of the newest replay transitions")
+    cli = parser.parse_args()
+    torch.set_num_threads(1)
+    args, ckpt = rile.resume(rile.Args(resume=cli.run_dir))  # the run's config and its checkpoint
+    if args.termination_remedy != "absorbing" or args.trainer_obs != "state-action":
+        sys.exit(f"error: {cli.run_dir} was trained with --termination-remedy {args.termination_remedy} "
+                 f"--trainer-obs {args.trainer_obs}; this check is for absorbing-state runs whose trainer sees (s, a_S)")
+    env = rile.make_env(args.env_id, args.seed)
+    obs_dim, act_dim = env.observation_space.shape[0], env.action_space.shape[0]
+    low, high, device = env.action_space.low, env.action_space.high, torch.device("cpu")
+    trainer = rile.SAC(obs_dim + 1 + act_dim, 1, np.array([-1.0]), np.array([1.0]), rile.dataclasses.replace(
+        args, hidden_dim=args.trainer_hidden_dim, autotune=False), device)
+    trainer.load_state_dict(ckpt["trainer"])
+    student = rile.SAC(obs_dim + 1, act_dim, low, high, args, device, absorbing=True)
+    student.load_state_dict(ckpt["agent"])
+    rb = rile.ReplayBuffer(obs_dim + 1, act_dim, args.buffer_size, device, extra_dim=1)
+    rb.load_state_dict(ckpt["replay_buffer"])
+    demos = rile.load_demonstrations(args.expert_path or os.path.join("experts", f"{args.env_id}.npz"), env,
+                                     args.num_expert_trajs, args.state_only)
+    expert = rile.absorbing_expert(rile.expert_tensors(demos, args, low, high, device))
+    r_s = lambda obs, actions: rile.student_reward(trainer.actor, torch.cat([obs, actions], -1), args.termination_remedy)
+
+    with torch.no_grad():
+        on_expert = r_s(expert["obs"], expert["actions"])
+        recent = rb.batch(torch.arange(max(0, rb.size - cli.recent), rb.size))
+        on_student = r_s(recent.obs, recent.actions)
+        student_at_expert = r_s(expert["obs"], student.actor.deterministic(expert["obs"][:, :-1]))
+    at_abs, into_abs = recent.obs[:, -1] > 0, (recent.next_obs[:, -1] > 0) & (recent.obs[:, -1] == 0)
+    living = ~at_abs & ~into_abs
+    horizon = 1 / (1 - args.gamma)
+    frozen = ckpt["rile"]["frozen_at"]
+    print(f"{cli.run_dir} at step {ckpt['step']}, gamma {args.gamma}, trainer "
+          f"{'frozen at step ' + str(frozen) if frozen is not None else 'learning'}")
+    print(f"r_S on the demonstrations:               mean {on_expert.mean():7.3f}  std {on_expert.std():6.3f}")
+    print(f"r_S of the student's action at their states: mean {student_at_expert.mean():7.3f}")
+    print(f"r_S on the student's living transitions:  mean {on_student[living].mean():7.3f}  std "
+          f"{on_student[living].std():6.3f}  (newest {len(recent.obs)} of the replay buffer)")
+    if into_abs.any():
+        print(f"r_S into the absorbing state:             mean {on_student[into_abs].mean():7.3f}  ({int(into_abs.sum())} falls)")
+    with torch.no_grad():
+        s_abs = torch.as_tensor(rile.absorbing_state(obs_dim)).unsqueeze(0)
+        r_abs = r_s(s_abs, torch.zeros(1, act_dim)).item()
+    print(f"r_S at the absorbing state:               {r_abs:7.3f}; worth of falling r_abs / (1 - gamma): "
+          f"{r_abs * horizon:.1f}, of living at the student's mean: {on_student[living].mean() * horizon:.1f}")
+
+    obs, _ = env.reset(seed=args.seed + 100_000)  # the first evaluation episode
+    x0, rewards, done, steps = env.unwrapped.data.qpos[0], [], False, 0
+    while not done:
+        action = student.actor.act(obs, deterministic=True)
+        with torch.no_grad():
+            rewards.append(r_s(torch.as_tensor(np.append(obs, 0.0), dtype=torch.float32)[None],
+                               torch.as_tensor(action)[None]).item())
+        obs, _, terminated, truncated, _ = env.step(action)
+        done, steps = terminated or truncated, steps + 1
+    moved = env.unwrapped.data.qpos[0] - x0 if hasattr(env.unwrapped, "data") else float("nan")
+    print(f"one deterministic episode: {steps} steps, {'fell' if terminated else 'time limit'}, moved {moved:.2f} "
+          f"along x, r_S mean {np.mean(rewards):.3f} (min {np.min(rewards):.3f}, max {np.max(rewards):.3f})")
+
+
+if __name__ == "__main__":
+    main()
