@@ -17,13 +17,19 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 import airl  # noqa: E402
 
 
-def main():
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+def open_run(script, doc: str):
+    """The command line (a run directory, --recent), then the run's config and checkpoint as `script`
+    (the imported module: airl, rile) reads them on --resume. benchmarks/rile_rewards.py uses it too."""
+    parser = argparse.ArgumentParser(description=doc.split("\n\n")[0])
     parser.add_argument("run_dir")
     parser.add_argument("--recent", type=int, default=20000, help="how many of the newest replay transitions")
     cli = parser.parse_args()
     torch.set_num_threads(1)
-    args, ckpt = airl.resume(airl.Args(resume=cli.run_dir))  # the run's config and its checkpoint
+    return (cli, *script.resume(script.Args(resume=cli.run_dir)))
+
+
+def main():
+    cli, args, ckpt = open_run(airl, __doc__)
     if args.termination_remedy != "absorbing":
         sys.exit(f"error: {cli.run_dir} was trained with --termination-remedy {args.termination_remedy}; "
                  "this check is for absorbing-state runs")

@@ -6,7 +6,6 @@ Answers "is falling worth less than living, and is walking worth more than stand
     python benchmarks/rile_rewards.py runs/bench__Walker2d-v4__rile-absorbing__1 [--recent 20000]
 """
 
-import argparse
 import os
 import sys
 
@@ -15,15 +14,11 @@ import torch
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 import rile  # noqa: E402
+from benchmarks.airl_rewards import open_run  # noqa: E402
 
 
 def main():
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("run_dir")
-    parser.add_argument("--recent", type=int, default=20000, help="how many of the newest replay transitions")
-    cli = parser.parse_args()
-    torch.set_num_threads(1)
-    args, ckpt = rile.resume(rile.Args(resume=cli.run_dir))  # the run's config and its checkpoint
+    cli, args, ckpt = open_run(rile, __doc__)
     if args.termination_remedy != "absorbing" or args.trainer_obs != "state-action":
         sys.exit(f"error: {cli.run_dir} was trained with --termination-remedy {args.termination_remedy} "
                  f"--trainer-obs {args.trainer_obs}; this check is for absorbing-state runs whose trainer sees (s, a_S)")
