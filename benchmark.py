@@ -254,7 +254,8 @@ def summarize(runs: list) -> dict:
     lo, hi = bootstrap_ci(score)
     return {"n": len(runs), "return": mean_se(finals), "normalized": mean_se(normalized) if normalized else None,
             "iqm": iqm(score), "iqm_ci": (lo, hi), "iqm_of": "normalized" if score is normalized else "return",
-            "steps": max(r["evals"][-1]["step"] for r in runs), "wall_h": float(np.mean([r["wall_time_s"] for r in runs])) / 3600,
+            "steps": max(r["evals"][-1]["step"] for r in runs),
+            "wall_h": float(np.mean([r["wall_time_s"] for r in runs])) / 3600,
             "seeds": sorted(r["seed"] for r in runs)}
 
 

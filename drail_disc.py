@@ -130,7 +130,8 @@ class Args:
     """episodes per evaluation"""
 
     # Trainer arguments (rile)
-    trainer_reward: Literal["difference", "exp-difference", "multiplication", "naive", "exp-naive", "sigmoid"] = "exp-difference"
+    trainer_reward: Literal["difference", "exp-difference", "multiplication", "naive", "exp-naive",
+                            "sigmoid"] = "exp-difference"
     """the trainer's reward (the paper's ablation); v(D) = 2D - 1"""
     trainer_buffer_size: int = 16_384
     """the trainer learns from this many most recent transitions"""
@@ -263,7 +264,8 @@ class DiffusionDiscriminator(nn.Module):
         loss.backward()
         self.optimizer.step()
         metrics = {"losses/disc_loss": loss, "losses/disc_gp": torch.zeros_like(loss),  # no gradient penalty
-                   "disc/expert_prob": torch.sigmoid(expert_logits).mean(), "disc/policy_prob": torch.sigmoid(policy_logits).mean()}
+                   "disc/expert_prob": torch.sigmoid(expert_logits).mean(),
+                   "disc/policy_prob": torch.sigmoid(policy_logits).mean()}
         return {name: value.detach() for name, value in metrics.items()}
 
     @torch.no_grad()
@@ -575,7 +577,8 @@ class SAC:
         with torch.no_grad():
             torch._foreach_lerp_(list(self.qf_target.parameters()), list(self.qf.parameters()), self.tau)
         metrics = dict(qf_loss=qf_loss, qf_values=q_mean, actor_loss=actor_loss, alpha_loss=alpha_loss, entropy=entropy)
-        return {prefix + name: value.detach() for name, value in metrics.items()} | {prefix + "alpha": self.log_alpha.exp().detach()}
+        metrics["alpha"] = self.log_alpha.exp()
+        return {prefix + name: value.detach() for name, value in metrics.items()}
 
     def parts(self) -> dict:
         parts = dict(actor=self.actor, qf=self.qf, qf_target=self.qf_target, q_optimizer=self.q_optimizer,
@@ -1017,7 +1020,8 @@ if __name__ == "__main__":
         store(rb, obs, action, next_obs, reward, terminated, absorbing, a_t, a_t_absorbing)  # env reward: never learned from
         obs = next_obs
         if terminated or truncated:
-            run.log({"charts/episodic_return": info["episode"]["r"], "charts/episodic_length": info["episode"]["l"]}, global_step)
+            episode = info["episode"]
+            run.log({"charts/episodic_return": episode["r"], "charts/episodic_length": episode["l"]}, global_step)
             obs, _ = env.reset()
 
         # ALGO LOGIC: training
@@ -1028,14 +1032,16 @@ if __name__ == "__main__":
                 metrics = gail_update(agent, disc, rb, expert, args, state_only=args.state_only)
             if global_step % 1000 == 0:  # the same names in both variants: the student's SAC metrics as losses/student_*
                 run.log({name if rile_mode or "disc" in name else name.replace("losses/", "losses/student_"): value
-                         for name, value in metrics.items() if name not in ("reward/learned_std", "reward/trainer_reward_mean")},
+                         for name, value in metrics.items()
+                         if name not in ("reward/learned_std", "reward/trainer_reward_mean")},
                         global_step)
             if (rile_mode and global_step % 100 == 0 and args.trainer_freeze and state["frozen_at"] is None  # .item() syncs
                     and state["trainer_updates"] >= args.trainer_freeze_min_updates
                     and state["critic_loss_ema"].item() < args.trainer_freeze_threshold):
                 state["frozen_at"] = global_step
                 run.writer.add_text("trainer/frozen_at", str(global_step), global_step)
-                print(f"trainer frozen at step {global_step} (critic loss EMA {state['critic_loss_ema'].item():.4f})", flush=True)
+                print(f"trainer frozen at step {global_step} (critic loss EMA {state['critic_loss_ema'].item():.4f})",
+                      flush=True)
         trainer_status = f" | trainer {'frozen' if state['frozen_at'] is not None else 'learning'}" if rile_mode else ""
         run.end_step(global_step + 1, agent.actor.act, status=trainer_status)
 

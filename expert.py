@@ -482,7 +482,8 @@ class SAC:
         with torch.no_grad():
             torch._foreach_lerp_(list(self.qf_target.parameters()), list(self.qf.parameters()), self.tau)
         metrics = dict(qf_loss=qf_loss, qf_values=q_mean, actor_loss=actor_loss, alpha_loss=alpha_loss, entropy=entropy)
-        return {prefix + name: value.detach() for name, value in metrics.items()} | {prefix + "alpha": self.log_alpha.exp().detach()}
+        metrics["alpha"] = self.log_alpha.exp()
+        return {prefix + name: value.detach() for name, value in metrics.items()}
 
     def parts(self) -> dict:
         parts = dict(actor=self.actor, qf=self.qf, qf_target=self.qf_target, q_optimizer=self.q_optimizer,
@@ -844,7 +845,8 @@ if __name__ == "__main__":
         rb.add(obs, action, next_obs, reward, terminated)  # next_obs is the true one, also at truncation
         obs = next_obs
         if terminated or truncated:
-            run.log({"charts/episodic_return": info["episode"]["r"], "charts/episodic_length": info["episode"]["l"]}, global_step)
+            episode = info["episode"]
+            run.log({"charts/episodic_return": episode["r"], "charts/episodic_length": episode["l"]}, global_step)
             obs, _ = env.reset()
 
         # ALGO LOGIC: training

@@ -169,7 +169,8 @@ class Discriminator(nn.Module):
         self.optimizer.zero_grad(set_to_none=False)
         loss.backward()
         self.optimizer.step()
-        metrics = {"losses/disc_loss": bce, "losses/disc_gp": gp, "disc/expert_prob": expert_prob, "disc/policy_prob": policy_prob}
+        metrics = {"losses/disc_loss": bce, "losses/disc_gp": gp, "disc/expert_prob": expert_prob,
+                   "disc/policy_prob": policy_prob}
         return {name: value.detach() for name, value in metrics.items()}
 
     @torch.no_grad()
@@ -388,7 +389,8 @@ class SAC:
         with torch.no_grad():
             torch._foreach_lerp_(list(self.qf_target.parameters()), list(self.qf.parameters()), self.tau)
         metrics = dict(qf_loss=qf_loss, qf_values=q_mean, actor_loss=actor_loss, alpha_loss=alpha_loss, entropy=entropy)
-        return {prefix + name: value.detach() for name, value in metrics.items()} | {prefix + "alpha": self.log_alpha.exp().detach()}
+        metrics["alpha"] = self.log_alpha.exp()
+        return {prefix + name: value.detach() for name, value in metrics.items()}
 
     def parts(self) -> dict:
         parts = dict(actor=self.actor, qf=self.qf, qf_target=self.qf_target, q_optimizer=self.q_optimizer,
@@ -792,7 +794,8 @@ if __name__ == "__main__":
         store(rb, obs, action, next_obs, reward, terminated, absorbing)  # the env reward is stored, never learned from
         obs = next_obs
         if terminated or truncated:
-            run.log({"charts/episodic_return": info["episode"]["r"], "charts/episodic_length": info["episode"]["l"]}, global_step)
+            episode = info["episode"]
+            run.log({"charts/episodic_return": episode["r"], "charts/episodic_length": episode["l"]}, global_step)
             obs, _ = env.reset()
 
         # ALGO LOGIC: training

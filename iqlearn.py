@@ -395,7 +395,8 @@ class SAC:
         with torch.no_grad():
             torch._foreach_lerp_(list(self.qf_target.parameters()), list(self.qf.parameters()), self.tau)
         metrics = dict(qf_loss=qf_loss, qf_values=q_mean, actor_loss=actor_loss, alpha_loss=alpha_loss, entropy=entropy)
-        return {prefix + name: value.detach() for name, value in metrics.items()} | {prefix + "alpha": self.log_alpha.exp().detach()}
+        metrics["alpha"] = self.log_alpha.exp()
+        return {prefix + name: value.detach() for name, value in metrics.items()}
 
     def parts(self) -> dict:
         parts = dict(actor=self.actor, qf=self.qf, qf_target=self.qf_target, q_optimizer=self.q_optimizer,
@@ -730,7 +731,8 @@ if __name__ == "__main__":
     # ALGO LOGIC: the agent and the online buffer ('terminated' holds the done flag of --timeout-done)
     agent = IQLearn(obs_dim, act_dim, low, high, args, device)
     rb = ReplayBuffer(obs_dim, act_dim, args.buffer_size, device)
-    stateful = {"agent": agent, "q_optimizer": agent.q_optimizer, "actor_optimizer": agent.actor_optimizer, "replay_buffer": rb}
+    stateful = {"agent": agent, "q_optimizer": agent.q_optimizer, "actor_optimizer": agent.actor_optimizer,
+                "replay_buffer": rb}
     run = Run(args, checkpoint, stateful, float(demos["episode_returns"].mean()), device)
 
     # TRY NOT TO MODIFY: start the game
@@ -741,7 +743,8 @@ if __name__ == "__main__":
         rb.add(obs, action, next_obs, reward, terminated or (truncated and args.timeout_done))
         obs = next_obs
         if terminated or truncated:
-            run.log({"charts/episodic_return": info["episode"]["r"], "charts/episodic_length": info["episode"]["l"]}, global_step)
+            episode = info["episode"]
+            run.log({"charts/episodic_return": episode["r"], "charts/episodic_length": episode["l"]}, global_step)
             obs, _ = env.reset()
 
         # ALGO LOGIC: training

@@ -147,7 +147,8 @@ class Args:
     """episodes per evaluation"""
 
     # Trainer arguments
-    trainer_reward: Literal["difference", "exp-difference", "multiplication", "naive", "exp-naive", "sigmoid"] = "exp-difference"
+    trainer_reward: Literal["difference", "exp-difference", "multiplication", "naive", "exp-naive",
+                            "sigmoid"] = "exp-difference"
     """the trainer's reward (the paper's ablation); v(D) = 2D - 1"""
     trainer_buffer_size: int = 16_384
     """the trainer learns from this many most recent transitions"""
@@ -241,7 +242,8 @@ class Discriminator(nn.Module):
         self.optimizer.zero_grad(set_to_none=False)
         loss.backward()
         self.optimizer.step()
-        metrics = {"losses/disc_loss": bce, "losses/disc_gp": gp, "disc/expert_prob": expert_prob, "disc/policy_prob": policy_prob}
+        metrics = {"losses/disc_loss": bce, "losses/disc_gp": gp, "disc/expert_prob": expert_prob,
+                   "disc/policy_prob": policy_prob}
         return {name: value.detach() for name, value in metrics.items()}
 
     @torch.no_grad()
@@ -400,7 +402,8 @@ def load_reward(path: str, trainer: "SAC", disc: "Discriminator", args, obs_dim:
     for name in ("termination_remedy", "state_only", "trainer_obs"):
         if saved[name] != getattr(args, name):
             flag = f"--{name.replace('_', '-')}"
-            raise SystemExit(f"error: reward '{path}' was learned with {flag} {saved[name]}; pass the same to train against it")
+            raise SystemExit(f"error: reward '{path}' was learned with {flag} {saved[name]}; "
+                             "pass the same to train against it")
     trainer.actor.load_state_dict(saved["trainer_actor"])
     disc.load_state_dict(saved["disc"])
     return saved
@@ -588,7 +591,8 @@ class SAC:
         with torch.no_grad():
             torch._foreach_lerp_(list(self.qf_target.parameters()), list(self.qf.parameters()), self.tau)
         metrics = dict(qf_loss=qf_loss, qf_values=q_mean, actor_loss=actor_loss, alpha_loss=alpha_loss, entropy=entropy)
-        return {prefix + name: value.detach() for name, value in metrics.items()} | {prefix + "alpha": self.log_alpha.exp().detach()}
+        metrics["alpha"] = self.log_alpha.exp()
+        return {prefix + name: value.detach() for name, value in metrics.items()}
 
     def parts(self) -> dict:
         parts = dict(actor=self.actor, qf=self.qf, qf_target=self.qf_target, q_optimizer=self.q_optimizer,
@@ -1036,7 +1040,8 @@ if __name__ == "__main__":
         store(rb, obs, action, next_obs, reward, terminated, absorbing, a_t, a_t_absorbing)  # env reward: for CPR only
         obs = next_obs
         if terminated or truncated:
-            run.log({"charts/episodic_return": info["episode"]["r"], "charts/episodic_length": info["episode"]["l"]}, global_step)
+            episode = info["episode"]
+            run.log({"charts/episodic_return": episode["r"], "charts/episodic_length": episode["l"]}, global_step)
             obs, _ = env.reset()
 
         # ALGO LOGIC: training
@@ -1050,7 +1055,8 @@ if __name__ == "__main__":
                     and state["critic_loss_ema"].item() < args.trainer_freeze_threshold):
                 state["frozen_at"] = global_step
                 run.writer.add_text("trainer/frozen_at", str(global_step), global_step)
-                print(f"trainer frozen at step {global_step} (critic loss EMA {state['critic_loss_ema'].item():.4f})", flush=True)
+                print(f"trainer frozen at step {global_step} (critic loss EMA {state['critic_loss_ema'].item():.4f})",
+                      flush=True)
 
         step = global_step + 1
         if args.dynamics_freq and step % args.dynamics_freq == 0 and step > args.learning_starts:

@@ -14,7 +14,8 @@ import numpy as np
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("files", nargs="+", help="results files (benchmarks/results/<env>/<algo>__<seed>.json or runs/<run>/results.json)")
+    parser.add_argument("files", nargs="+",
+                        help="results files (benchmarks/results/<env>/<algo>__<seed>.json or runs/<run>/results.json)")
     parser.add_argument("--last", type=int, default=5, help="how many of the last evaluations the median takes")
     cli = parser.parse_args()
     finals, medians = [], []

@@ -140,8 +140,8 @@ def plot_landscapes(rows: dict, expert_path: np.ndarray, path: str) -> None:
         for c, (label, (xs, ys, values), student) in enumerate(panels):
             ax = axes[r, c]
             ax.set_facecolor("0.35")
-            im = ax.imshow(np.ma.masked_invalid(values), origin="lower", cmap="viridis", vmin=lo, vmax=hi if hi > lo else lo + 1,
-                           extent=(0, xs[-1] + xs[0], 0, ys[-1] + ys[0]))
+            im = ax.imshow(np.ma.masked_invalid(values), origin="lower", cmap="viridis", vmin=lo,
+                           vmax=hi if hi > lo else lo + 1, extent=(0, xs[-1] + xs[0], 0, ys[-1] + ys[0]))
             ax.plot(expert_path[:, 0], expert_path[:, 1], color="white", lw=2, label="expert")
             ax.plot(student[:, 0], student[:, 1], color="red", lw=1.2, label="student")
             ax.plot(*student[-1], "o", color="red", ms=3)

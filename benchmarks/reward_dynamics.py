@@ -54,7 +54,8 @@ def train_segments(script: str, run_name: str, segment_steps: int, segments: int
         if os.path.isdir(snapshot_dir(run_dir, steps)):
             continue
         cmd = [sys.executable, "-W", "ignore", os.path.join(ROOT, script), "--total-timesteps", str(steps), "--threads", "1"]
-        cmd += ["--resume", run_dir] if os.path.exists(os.path.join(run_dir, "checkpoint.pt")) else ["--run-name", run_name, *extra]
+        resuming = os.path.exists(os.path.join(run_dir, "checkpoint.pt"))
+        cmd += ["--resume", run_dir] if resuming else ["--run-name", run_name, *extra]
         out = subprocess.run(cmd, stdout=log, stderr=subprocess.STDOUT if log else None)
         if out.returncode != 0:
             raise SystemExit(f"error: {' '.join(cmd)} failed ({out.returncode})")
@@ -114,7 +115,8 @@ class Snapshot:
                                       self.saved["trainer_hidden_dim"])
             self.trainer.load_state_dict(self.saved["trainer_actor"])
         elif self.method == "gail":
-            self.disc = gail.Discriminator(self.obs_dim + self.absorbing + self.act_dim, self.saved["disc_hidden_dim"], 1e-3, 0.0)
+            in_dim = self.obs_dim + self.absorbing + self.act_dim
+            self.disc = gail.Discriminator(in_dim, self.saved["disc_hidden_dim"], 1e-3, 0.0)
             self.disc.load_state_dict(self.saved["disc"])
         else:
             self.disc = airl.AIRLDiscriminator(self.obs_dim + self.absorbing, self.act_dim, self.saved["hidden_dim"],
@@ -135,7 +137,8 @@ class Snapshot:
     def reward(self, obs_aug, actions, next_obs_aug, terminations) -> np.ndarray:
         """The reward the learner is trained with, on stored (augmented) transitions."""
         if self.method == "rile":
-            return rile.student_reward(self.trainer, torch.cat([obs_aug, actions], -1), self.saved["termination_remedy"]).numpy()
+            obs_t = torch.cat([obs_aug, actions], -1)
+            return rile.student_reward(self.trainer, obs_t, self.saved["termination_remedy"]).numpy()
         if self.method == "gail":
             return gail.gail_reward(self.disc(torch.cat([obs_aug, actions], -1)), self.saved["reward_form"]).numpy()
         if self.config["reward"] == "g":

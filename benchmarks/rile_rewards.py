@@ -53,7 +53,8 @@ def main():
     print(f"r_S on the student's living transitions:  mean {on_student[living].mean():7.3f}  std "
           f"{on_student[living].std():6.3f}  (newest {len(recent.obs)} of the replay buffer)")
     if into_abs.any():
-        print(f"r_S into the absorbing state:             mean {on_student[into_abs].mean():7.3f}  ({int(into_abs.sum())} falls)")
+        falls = int(into_abs.sum())
+        print(f"r_S into the absorbing state:             mean {on_student[into_abs].mean():7.3f}  ({falls} falls)")
     with torch.no_grad():
         s_abs = torch.as_tensor(rile.absorbing_state(obs_dim)).unsqueeze(0)
         r_abs = r_s(s_abs, torch.zeros(1, act_dim)).item()

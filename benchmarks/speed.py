@@ -56,7 +56,8 @@ def run_script(variant: str, args, workdir: str) -> float:
     demos = ["--expert-path", os.path.join(ROOT, "experts", f"{args.env_id}.npz")]
     rile = demos + ["--dynamics-freq", "0"]
     drail = demos + ["--disc-hidden-dim", str(args.drail_width)]
-    script, flags = {"eager": ("expert.py", ["--no-record-demos"]), "compile": ("expert.py", ["--no-record-demos", "--compile"]),
+    script, flags = {"eager": ("expert.py", ["--no-record-demos"]),
+                     "compile": ("expert.py", ["--no-record-demos", "--compile"]),
                      "rile": ("rile.py", rile),
                      "rile-frozen": ("rile.py", rile + ["--trainer-freeze-min-updates", "0",
                                                         "--trainer-freeze-threshold", "1e9"]),
@@ -121,7 +122,8 @@ def main():
     record = {
         "what": "env steps per second after learning starts, evaluation excluded",
         "env_id": args.env_id, "learning_starts": args.learning_starts, "timed_steps": args.steps,
-        "repeats": args.repeats, "drail_width": args.drail_width, "sps_runs": runs, "sps": results, "ratio_to_sb3": {k: v / results["sb3"] for k, v in results.items() if k != "sb3"},
+        "repeats": args.repeats, "drail_width": args.drail_width, "sps_runs": runs, "sps": results,
+        "ratio_to_sb3": {k: v / results["sb3"] for k, v in results.items() if k != "sb3"},
         "machine": {"cpu": cpu_name(), "cpu_count": os.cpu_count(),
                     "torch": torch.__version__, "threads": args.threads, "python": platform.python_version()},
         "git_commit": git.stdout.strip() or None, "date": time.strftime("%Y-%m-%d %H:%M"),

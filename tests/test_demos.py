@@ -154,7 +154,8 @@ def write_imitation_npz(tmp_path, eps):
     infos[:] = [{} for _ in range(sum(lengths))]
     path = tmp_path / "imitation.npz"
     np.savez_compressed(path, obs=np.concatenate([e["obs"] for e in eps]),
-                        acts=np.concatenate([e["actions"] for e in eps]), infos=infos, terminal=np.array([True] * len(eps)), indices=np.cumsum(lengths[:-1]),
+                        acts=np.concatenate([e["actions"] for e in eps]), infos=infos, terminal=np.array([True] * len(eps)),
+                        indices=np.cumsum(lengths[:-1]),
                         rews=np.concatenate([e["rewards"] for e in eps]))
     return str(path), []
 

@@ -88,7 +88,8 @@ def test_drail_rile_gives_the_trainer_rile_py_reward(monkeypatch):
         rb.add(np.full(2, i), np.zeros(1), np.full(2, i + 1), 0.0, False, extra=[0.5])
     seen = {}
     monkeypatch.setattr(trainer, "update", lambda *b, prefix: seen.update(b=b) or {prefix + "qf_loss": torch.tensor(0.0)})
-    expert = {k: torch.zeros(5, n) for k, n in (("obs", 2), ("actions", 1), ("next_obs", 2))} | {"terminations": torch.zeros(5)}
+    expert = {"obs": torch.zeros(5, 2), "actions": torch.zeros(5, 1), "next_obs": torch.zeros(5, 2),
+              "terminations": torch.zeros(5)}
     state = {"frozen_at": None, "reward_only": False, "trainer_updates": 0, "critic_loss_ema": torch.tensor(0.0)}
     drail_disc.rile_update(student, trainer, d, rb, expert, args, state)
     r_t = seen["b"][3]

@@ -276,7 +276,8 @@ def test_demonstrations_round_trip(demo_file):
         assert np.array_equal(loaded[key], value) and loaded[key].dtype == value.dtype
     assert loaded["metadata"]["selection"] == "test"
     starts, lengths = loaded["episode_starts"], loaded["episode_lengths"]
-    assert starts.tolist() == np.concatenate([[0], np.cumsum(lengths)[:-1]]).tolist() and lengths.sum() == len(loaded["rewards"])
+    assert starts.tolist() == np.concatenate([[0], np.cumsum(lengths)[:-1]]).tolist()
+    assert lengths.sum() == len(loaded["rewards"])
     for s, n, ret in zip(starts, lengths, loaded["episode_returns"]):
         ep = slice(s, s + n)
         assert np.array_equal(loaded["next_observations"][ep][:-1], loaded["observations"][ep][1:])

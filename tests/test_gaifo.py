@@ -4,7 +4,6 @@ is recomputed for every batch; a short run through every update path."""
 import json
 
 import numpy as np
-import pytest
 import torch
 
 import gaifo

@@ -69,7 +69,8 @@ def test_chi2_on_policy_states_takes_the_current_policys_action(monkeypatch, chi
     agent = iqlearn.IQLearn(2, 1, -np.ones(1), np.ones(1), args, "cpu")
     agent.q, agent.q_target = ActionQ(2.0), ActionQ(3.0)
     pi_action = 0.5  # the current policy's action everywhere, log pi = -1
-    monkeypatch.setattr(agent.actor, "sample", lambda obs: (torch.full((len(obs), 1), pi_action), torch.full((len(obs),), -1.0)))
+    monkeypatch.setattr(agent.actor, "sample",
+                        lambda obs: (torch.full((len(obs), 1), pi_action), torch.full((len(obs),), -1.0)))
     obs, next_obs = torch.zeros(4, 2), torch.zeros(4, 2)
     actions = torch.tensor([[-1.0], [0.25], [1.0], [0.0]])  # rows 0, 1: replay (old policies); rows 2, 3: expert
     dones = torch.tensor([0.0, 1.0, 0.0, 0.0])
@@ -101,8 +102,10 @@ def test_update_steps_the_critic_actor_and_target():
     args = iqlearn.Args(hidden_dim=8, value_loss="value", alpha=0.01)
     agent = iqlearn.IQLearn(2, 1, -np.ones(1), np.ones(1), args, "cpu")
     before = [p.clone() for p in agent.q_target.parameters()]
-    policy = iqlearn.Batch(torch.randn(4, 2), torch.rand(4, 1), torch.randn(4, 2), torch.zeros(4), torch.zeros(4), torch.zeros(4, 0))
-    expert = {"obs": torch.randn(4, 2), "actions": torch.rand(4, 1), "next_obs": torch.randn(4, 2), "terminations": torch.zeros(4)}
+    policy = iqlearn.Batch(torch.randn(4, 2), torch.rand(4, 1), torch.randn(4, 2), torch.zeros(4), torch.zeros(4),
+                           torch.zeros(4, 0))
+    expert = {"obs": torch.randn(4, 2), "actions": torch.rand(4, 1), "next_obs": torch.randn(4, 2),
+              "terminations": torch.zeros(4)}
     metrics = agent.update(policy, expert)
     assert set(metrics) == {"losses/critic", "losses/actor", "losses/softq", "losses/value", "losses/chi2", "losses/q_expert",
                             "losses/q_policy", "reward/implicit_expert", "reward/implicit_policy",

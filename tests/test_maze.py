@@ -176,7 +176,8 @@ def test_plots_on_tiny_data(tmp_path):
 def test_train_command_passes_the_scripts_flags(monkeypatch):
     calls = []
     monkeypatch.setattr(reward_dynamics, "train_segments", lambda *a: calls.append(a) or "runs/x")
-    reward_dynamics.main(["train", "gail.py", "--run-name", "x", "--segments", "3", "--", "--env-id", "Hopper-v4", "--seed", "2"])
+    reward_dynamics.main(["train", "gail.py", "--run-name", "x", "--segments", "3", "--",
+                          "--env-id", "Hopper-v4", "--seed", "2"])
     assert calls == [("gail.py", "x", 10_000, 3, ["--env-id", "Hopper-v4", "--seed", "2"])]
     with pytest.raises(SystemExit):
         reward_dynamics.main(["measure", "runs/x", "--seed", "2"])

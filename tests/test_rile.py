@@ -212,7 +212,8 @@ def test_discriminator_loss_and_gradient_penalty_by_hand():
     want_bce = np.log1p(np.exp(-3.0)) + np.log1p(np.exp(4.0))
     assert bce.item() == pytest.approx(want_bce, rel=1e-6) and gp.item() == pytest.approx(16.0)
     assert loss.item() == pytest.approx(want_bce + 16.0, rel=1e-6)
-    assert expert_prob.item() == pytest.approx(1 / (1 + np.exp(-3.0))) and policy_prob.item() == pytest.approx(1 / (1 + np.exp(-4.0)))
+    assert expert_prob.item() == pytest.approx(1 / (1 + np.exp(-3.0)))
+    assert policy_prob.item() == pytest.approx(1 / (1 + np.exp(-4.0)))
 
 
 def test_discriminator_learns_to_separate():
@@ -277,7 +278,8 @@ def test_demonstrations_of_another_env_are_refused(run):
 
 
 def test_resume_continues_the_run(run, tmp_path):
-    run("rile.py", *TINY, "--total-timesteps", "300", "--run-name", "res", "--termination-remedy", "survival")  # one row per step
+    # survival: one buffer row per step
+    run("rile.py", *TINY, "--total-timesteps", "300", "--run-name", "res", "--termination-remedy", "survival")
     out = run("rile.py", *TINY, "--resume", "runs/res", "--total-timesteps", "600").stdout
     assert "resumed runs/res at step 300" in out
     results = json.loads((tmp_path / "runs/res/results.json").read_text())

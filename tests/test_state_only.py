@@ -169,7 +169,8 @@ def test_trainer_on_transitions_needs_state_only(run):
 
 
 def test_expert_writes_a_state_only_file_that_state_only_methods_read(run, tmp_path):
-    out = run("expert.py", "--env-id", "InvertedPendulum-v4", "--record-from", str(ROOT / "experts/InvertedPendulum-v4-actor.pt"),
+    actor = str(ROOT / "experts/InvertedPendulum-v4-actor.pt")
+    out = run("expert.py", "--env-id", "InvertedPendulum-v4", "--record-from", actor,
               "--num-demos", "2", "--no-actions", "--demo-path", "states.npz").stdout
     assert "recorded 2 episodes" in out
     with np.load(tmp_path / "states.npz") as f:
