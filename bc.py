@@ -134,17 +134,15 @@ def holdout_split(demos: dict, fraction: float):
 
 # --- shared: env ---
 def make_env(env_id: str, seed: int, render_mode: Optional[str] = None) -> gym.Env:
-    """One gymnasium env (no vector env: episodes are reset explicitly), seeded, with a clear error."""
+    """One seeded gymnasium env (no vector env: episodes are reset explicitly), or a one-line error."""
     try:
         env = gym.make(env_id, render_mode=render_mode)
     except gym.error.Error as e:
         raise SystemExit(f"error: cannot make environment '{env_id}' ({e}); check --env-id") from None
     if not isinstance(env.action_space, gym.spaces.Box) or not isinstance(env.observation_space, gym.spaces.Box):
         raise SystemExit(f"error: '{env_id}' needs Box observation and action spaces")
-    env = gym.wrappers.RecordEpisodeStatistics(env)
     env.action_space.seed(seed)
-    env.observation_space.seed(seed)
-    return env
+    return gym.wrappers.RecordEpisodeStatistics(env)
 
 
 def seed_everything(seed: int, torch_deterministic: bool = True) -> None:
@@ -161,27 +159,23 @@ LOG_STD_MIN = -5
 
 
 class Actor(nn.Module):
-    """tanh-squashed Gaussian policy; actions are scaled from [-1, 1] into the env's action box."""
+    """tanh-squashed Gaussian policy, actions scaled from [-1, 1] into the env's action box. Its log pi writes
+    log(1 - tanh(u)^2) as 2 (log 2 - u - softplus(-2u)): exact, and finite at the bounds."""
 
     def __init__(self, obs_dim: int, act_dim: int, action_low, action_high, hidden_dim: int = 256):
         super().__init__()
         self.net = nn.Sequential(nn.Linear(obs_dim, hidden_dim), nn.ReLU(), nn.Linear(hidden_dim, hidden_dim), nn.ReLU())
-        self.fc_mean = nn.Linear(hidden_dim, act_dim)
-        self.fc_logstd = nn.Linear(hidden_dim, act_dim)
-        low = torch.as_tensor(action_low, dtype=torch.float32)
-        high = torch.as_tensor(action_high, dtype=torch.float32)
+        self.fc_mean, self.fc_logstd = nn.Linear(hidden_dim, act_dim), nn.Linear(hidden_dim, act_dim)
+        low, high = torch.as_tensor(action_low, dtype=torch.float32), torch.as_tensor(action_high, dtype=torch.float32)
         self.register_buffer("action_scale", (high - low) / 2.0)
         self.register_buffer("action_bias", (high + low) / 2.0)
 
     def forward(self, obs):
         h = self.net(obs)
-        log_std = torch.tanh(self.fc_logstd(h))
-        log_std = LOG_STD_MIN + 0.5 * (LOG_STD_MAX - LOG_STD_MIN) * (log_std + 1)
+        log_std = LOG_STD_MIN + 0.5 * (LOG_STD_MAX - LOG_STD_MIN) * (torch.tanh(self.fc_logstd(h)) + 1)
         return self.fc_mean(h), log_std
 
-    def _log_prob(self, u, noise, log_std):
-        """log pi(a|s) for a = tanh(u) * scale + bias, u = mean + std * noise.
-        log(1 - tanh(u)^2) is written as 2 (log 2 - u - softplus(-2u)): exact, and finite at the bounds."""
+    def _log_prob(self, u, noise, log_std):  # log pi(a|s) for a = tanh(u) * scale + bias, u = mean + std * noise
         gauss = -0.5 * noise.pow(2) - log_std - 0.5 * np.log(2 * np.pi)
         squash = 2.0 * (np.log(2.0) - u - F.softplus(-2.0 * u)) + torch.log(self.action_scale)
         return (gauss - squash).sum(-1)
@@ -191,14 +185,12 @@ class Actor(nn.Module):
         mean, log_std = self(obs)
         noise = torch.randn_like(mean)
         u = mean + log_std.exp() * noise
-        action = torch.tanh(u) * self.action_scale + self.action_bias
-        return action, self._log_prob(u, noise, log_std)
+        return torch.tanh(u) * self.action_scale + self.action_bias, self._log_prob(u, noise, log_std)
 
     def log_prob(self, obs, action, eps: float = 1e-6):
         """log pi(action|obs) of given env-unit actions (e.g. expert actions), clamped inside the box."""
         mean, log_std = self(obs)
-        y = ((action - self.action_bias) / self.action_scale).clamp(-1 + eps, 1 - eps)
-        u = torch.atanh(y)
+        u = torch.atanh(((action - self.action_bias) / self.action_scale).clamp(-1 + eps, 1 - eps))
         return self._log_prob(u, (u - mean) / log_std.exp(), log_std)
 
     def deterministic(self, obs):
@@ -213,9 +205,8 @@ class Actor(nn.Module):
 
 def actor_file(actor: Actor, env_id: str, **extra) -> dict:
     """What actor.pt holds: the actor and what rebuilds it (`expert.py --record-from` reads any script's)."""
-    obs_dim, hidden_dim, act_dim = actor.net[0].in_features, actor.fc_mean.in_features, actor.fc_mean.out_features
-    return {"actor": actor.state_dict(), "env_id": env_id, "obs_dim": obs_dim, "act_dim": act_dim,
-            "hidden_dim": hidden_dim, **extra}
+    return {"actor": actor.state_dict(), "env_id": env_id, "obs_dim": actor.net[0].in_features,
+            "act_dim": actor.fc_mean.out_features, "hidden_dim": actor.fc_mean.in_features, **extra}
 # --- end shared: actor ---
 
 
@@ -226,25 +217,23 @@ STATE_ONLY_METHODS = "gaifo.py, bco.py, rile.py --state-only or drail_disc.py --
 
 
 def load_demonstrations(path: str, env: gym.Env, num_trajs: Optional[int] = None, state_only: bool = False) -> dict:
-    """Load experts/<env-id>.npz (format in README), check it belongs to `env`, keep the first
-    `num_trajs` episodes. With `state_only` the actions are dropped (a file without them loads); without,
-    they are required. Every problem is one clear SystemExit line."""
-    env_id = env.spec.id
+    """experts/<env-id>.npz (format in README), checked against `env`, cut to its first `num_trajs` episodes.
+    With `state_only` the actions are dropped (a file without them loads). Each problem is one SystemExit line."""
+    env_id, obs_dim, act_dim = env.spec.id, env.observation_space.shape[0], env.action_space.shape[0]
+    record = f"`python expert.py --env-id {env_id}`"
     if not os.path.isfile(path):
-        raise SystemExit(f"error: no demonstrations at '{path}'; record them with "
-                         f"`python expert.py --env-id {env_id}` or pass --expert-path")
+        raise SystemExit(f"error: no demonstrations at '{path}'; record them with {record} or pass --expert-path")
     try:
         with np.load(path, allow_pickle=False) as f:
             data = {k: f[k] for k in f.files}
-        meta = json.loads(str(data["metadata"])) if "metadata" in data else None
+        meta = json.loads(str(data.pop("metadata"))) if "metadata" in data else None
     except Exception as e:
         raise SystemExit(f"error: demonstrations '{path}' are unreadable or corrupt ({type(e).__name__}: {e}); "
-                         f"record them again with `python expert.py --env-id {env_id}`") from None
+                         f"record them again with {record}") from None
     if meta is None:
         raise SystemExit(f"error: '{path}' is not in this project's format (no metadata); convert it with "
                          f"`python demos.py convert {path} --env-id {env_id}`")
-    missing = [k for k in DEMO_KEYS if k not in data]
-    if missing:
+    if missing := [k for k in DEMO_KEYS if k not in data]:
         raise SystemExit(f"error: demonstrations '{path}' lack {missing}; record them again with expert.py")
     if state_only:
         data.pop("actions", None)  # never seen by a state-only method
@@ -254,30 +243,24 @@ def load_demonstrations(path: str, env: gym.Env, num_trajs: Optional[int] = None
     if meta.get("env_id") != env_id:
         raise SystemExit(f"error: demonstrations '{path}' were recorded on {meta.get('env_id')}, not {env_id}; "
                          f"pass the file for {env_id} with --expert-path")
-    obs_dim, act_dim = env.observation_space.shape[0], env.action_space.shape[0]
     act_shape = data["actions"].shape[1:] if "actions" in data else (act_dim,)
     if data["observations"].shape[1:] != (obs_dim,) or act_shape != (act_dim,):
         raise SystemExit(f"error: demonstrations '{path}' have obs/act dims {data['observations'].shape[1:]}/"
                          f"{act_shape}, {env_id} has ({obs_dim},)/({act_dim},)")
-    num_episodes = len(data["episode_lengths"])
     if num_trajs is not None:
-        if not 1 <= num_trajs <= num_episodes:
-            raise SystemExit(f"error: --num-expert-trajs {num_trajs}, but '{path}' holds {num_episodes} episodes")
+        if not 1 <= num_trajs <= len(data["episode_lengths"]):
+            raise SystemExit(f"error: --num-expert-trajs {num_trajs}, but '{path}' holds "
+                             f"{len(data['episode_lengths'])} episodes")
         end = int(data["episode_starts"][num_trajs - 1] + data["episode_lengths"][num_trajs - 1])
-        for k in ("observations", "actions", "next_observations", "rewards", "terminations", "truncations"):
-            if k in data:
-                data[k] = data[k][:end]
-        for k in ("episode_starts", "episode_lengths", "episode_returns"):
-            data[k] = data[k][:num_trajs]
-    data["metadata"] = meta
-    return data
+        data |= {k: data[k][: num_trajs if k.startswith("episode_") else end] for k in (*DEMO_KEYS, "actions") if k in data}
+    return data | {"metadata": meta}
 # --- end shared: demonstrations ---
 
 
 # --- shared: evaluation ---
-def evaluate(act, env_id: str, num_episodes: int, seed: int, capture_video_dir: Optional[str] = None):
-    """Deterministic policy on its own env; episode i starts from reset(seed=seed + i), so every
-    evaluation of a run sees the same start states. Returns the list of episode returns."""
+def evaluate(act, env_id: str, num_episodes: int, seed: int, capture_video_dir: Optional[str] = None) -> list:
+    """Returns of the deterministic policy on its own env; episode i starts from reset(seed=seed + i), so
+    every evaluation of a run sees the same start states."""
     env = make_env(env_id, seed, render_mode="rgb_array" if capture_video_dir else None)
     if capture_video_dir:
         env = gym.wrappers.RecordVideo(env, capture_video_dir, episode_trigger=lambda ep: ep == 0, disable_logger=True)
@@ -287,8 +270,7 @@ def evaluate(act, env_id: str, num_episodes: int, seed: int, capture_video_dir: 
         done, ep_return = False, 0.0
         while not done:
             obs, reward, terminated, truncated, _ = env.step(act(obs, deterministic=True))
-            ep_return += float(reward)
-            done = terminated or truncated
+            ep_return, done = ep_return + float(reward), terminated or truncated
         returns.append(ep_return)
     env.close()
     return returns
@@ -299,14 +281,13 @@ def evaluate(act, env_id: str, num_episodes: int, seed: int, capture_video_dir: 
 class Run:
     """Everything around the method: the run directory (config.json, TensorBoard, results.json), evaluation
     every --eval-freq steps, a progress line every 30 s, a checkpoint every --checkpoint-freq steps and on
-    Ctrl-C / SIGTERM, and --resume. `stateful` names the objects with state_dict() / load_state_dict() (the
-    learners with their optimisers, the replay buffer; a plain dict is saved as it is): a checkpoint is
-    their states, the RNG states and the run's progress."""
+    Ctrl-C / SIGTERM, and --resume. A checkpoint holds the state_dict() of each object in `stateful` (the
+    learners with their optimisers, the replay buffer; a plain dict as it is), the RNG states and the progress."""
 
     def __init__(self, args, checkpoint: Optional[dict], stateful: dict, expert_return: Optional[float], device):
-        self.args, self.stateful = args, stateful
-        # None without it, or NaN: demonstrations without rewards
-        self.expert_return = expert_return if expert_return is not None and np.isfinite(expert_return) else None
+        self.args, self.stateful, self.evals, self.start_step, self.wall_offset = args, stateful, [], 0, 0.0
+        finite = expert_return is not None and np.isfinite(expert_return)  # NaN: demonstrations without rewards
+        self.expert_return = expert_return if finite else None
         default_name = f"{args.env_id}__{args.exp_name}__{args.seed}__{int(time.time())}"
         self.name = checkpoint["run_name"] if checkpoint else (args.run_name or default_name)
         self.dir = os.path.join("runs", self.name)
@@ -325,7 +306,6 @@ class Run:
         self.writer.add_text("hyperparameters", f"|param|value|\n|-|-|\n{table}")
         self.machine = {"host": platform.node(), "torch": torch.__version__, "threads": torch.get_num_threads(),
                         "device": str(device)}
-        self.evals, self.start_step, self.wall_offset = [], 0, 0.0
         if checkpoint:
             for name, obj in stateful.items():
                 if isinstance(obj, dict):
@@ -333,7 +313,12 @@ class Run:
                 else:
                     obj.load_state_dict(checkpoint[name])
             self.evals, self.start_step, self.wall_offset = checkpoint["evals"], checkpoint["step"], checkpoint["wall_time"]
-            set_rng_state(checkpoint["rng"])
+            rng = checkpoint["rng"]
+            random.setstate(rng["python"])
+            np.random.set_state(rng["numpy"])
+            torch.set_rng_state(rng["torch"])
+            if rng["cuda"] is not None and torch.cuda.is_available():
+                torch.cuda.set_rng_state_all(rng["cuda"])
             print(f"resumed {self.dir} at step {self.start_step}")
         self.stop_signal, self.sps, self.learn_steps, self.learn_time, self.last_print = 0, 0.0, 0, 0.0, 0.0
         signal.signal(signal.SIGINT, self.on_signal)
@@ -361,8 +346,7 @@ class Run:
         if step % args.eval_freq == 0 or step == args.total_timesteps:
             self.evaluate(step, act)
         if time.time() - self.last_print > 30 or step == args.total_timesteps:
-            self.last_print = time.time()
-            left = format_time((args.total_timesteps - step) / self.sps) if self.sps > 0 else "?"
+            self.last_print, left = time.time(), format_time((args.total_timesteps - step) / self.sps) if self.sps else "?"
             print(f"step {step}/{args.total_timesteps} | {self.sps:.0f} SPS | eval return {self.last_eval()}{status} | "
                   f"left {left}", flush=True)
         checkpoint_freq = getattr(args, "checkpoint_freq", 0)
@@ -384,36 +368,32 @@ class Run:
         self.write_results(finished=False)
 
     def last_eval(self) -> str:
-        if not self.evals:
-            return "-"
-        e = self.evals[-1]
-        versus = f" = {e['normalized']:.2f} x expert {self.expert_return:.1f}" if e["normalized"] is not None else ""
-        return f"{e['mean']:.1f} +- {e['std']:.1f}{versus} (step {e['step']})"
-
-    def save_checkpoint(self, step: int) -> None:
-        state = {name: dict(obj) if isinstance(obj, dict) else obj.state_dict() for name, obj in self.stateful.items()}
-        state.update(step=step, evals=self.evals, wall_time=self.wall_time(), rng=rng_state(), config=asdict(self.args),
-                     run_name=self.name)
-        path = os.path.join(self.dir, "checkpoint.pt")
-        torch.save(state, path + ".tmp")
-        os.replace(path + ".tmp", path)  # atomic: an interrupted save never leaves a broken checkpoint
+        e = self.evals[-1] if self.evals else None
+        versus = f" = {e['normalized']:.2f} x expert {self.expert_return:.1f}" if e and e["normalized"] is not None else ""
+        return f"{e['mean']:.1f} +- {e['std']:.1f}{versus} (step {e['step']})" if e else "-"
 
     def wall_time(self) -> float:
         return self.wall_offset + time.time() - self.start_time
 
+    def save_checkpoint(self, step: int) -> None:
+        state = {name: dict(obj) if isinstance(obj, dict) else obj.state_dict() for name, obj in self.stateful.items()}
+        rng = {"python": random.getstate(), "numpy": np.random.get_state(), "torch": torch.get_rng_state(),
+               "cuda": torch.cuda.get_rng_state_all() if torch.cuda.is_available() else None}
+        state |= dict(step=step, evals=self.evals, wall_time=self.wall_time(), rng=rng, config=asdict(self.args),
+                      run_name=self.name)
+        torch.save(state, os.path.join(self.dir, "checkpoint.pt.tmp"))
+        os.replace(os.path.join(self.dir, "checkpoint.pt.tmp"), os.path.join(self.dir, "checkpoint.pt"))  # atomic
+
     def write_results(self, finished: bool) -> None:
         """results.json: the run's config, its evaluation curve and where it ran (format in README)."""
         final = self.evals[-1] if self.evals else {}
-        results = {
-            "algo": self.args.exp_name, "env_id": self.args.env_id, "seed": self.args.seed, "finished": finished,
-            "evals": self.evals, "final_return": final.get("mean"), "final_normalized_return": final.get("normalized"),
-            "expert_return": self.expert_return, "wall_time_s": self.wall_time(), "sps": self.sps,
-            "machine": self.machine, "config": asdict(self.args),
-        }
-        path = os.path.join(self.dir, "results.json")
-        with open(path + ".tmp", "w") as f:
+        results = {"algo": self.args.exp_name, "env_id": self.args.env_id, "seed": self.args.seed, "finished": finished,
+                   "evals": self.evals, "final_return": final.get("mean"), "final_normalized_return": final.get("normalized"),
+                   "expert_return": self.expert_return, "wall_time_s": self.wall_time(), "sps": self.sps,
+                   "machine": self.machine, "config": asdict(self.args)}
+        with open(os.path.join(self.dir, "results.json.tmp"), "w") as f:
             json.dump(results, f, indent=1)
-        os.replace(path + ".tmp", path)
+        os.replace(os.path.join(self.dir, "results.json.tmp"), os.path.join(self.dir, "results.json"))
 
     def finish(self, act, models: dict, status: str = "") -> None:
         """The last checkpoint and results.json, the models (unless --no-save-model), a video (--capture-video)."""
@@ -439,8 +419,8 @@ def format_time(seconds: float) -> str:
 
 
 def resume(args):
-    """--resume: the saved checkpoint, and the saved run's config with the fields a user may change on
-    resume (total_timesteps, cuda, threads) taken from the command line where they differ from their defaults."""
+    """--resume: the saved checkpoint, and the saved run's config with the fields a user may change on resume
+    (total_timesteps, cuda, threads; expert.py's compile, cudagraphs) taken from the command line where given."""
     path = os.path.join(args.resume, "checkpoint.pt") if os.path.isdir(args.resume) else args.resume
     if not os.path.isfile(path):
         raise SystemExit(f"error: no checkpoint at '{path}'; pass --resume runs/<run> of a run that saved one")
@@ -454,19 +434,6 @@ def resume(args):
             setattr(saved, name, getattr(args, name))
     saved.resume = args.resume
     return saved, checkpoint
-
-
-def rng_state() -> dict:
-    return {"python": random.getstate(), "numpy": np.random.get_state(), "torch": torch.get_rng_state(),
-            "cuda": torch.cuda.get_rng_state_all() if torch.cuda.is_available() else None}
-
-
-def set_rng_state(state: dict) -> None:
-    random.setstate(state["python"])
-    np.random.set_state(state["numpy"])
-    torch.set_rng_state(state["torch"])
-    if state["cuda"] is not None and torch.cuda.is_available():
-        torch.cuda.set_rng_state_all(state["cuda"])
 # --- end shared: run ---
 
 

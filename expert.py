@@ -302,17 +302,15 @@ def record_and_save(act, actor: "Actor", args, training_steps: int, source: str)
 
 # --- shared: env ---
 def make_env(env_id: str, seed: int, render_mode: Optional[str] = None) -> gym.Env:
-    """One gymnasium env (no vector env: episodes are reset explicitly), seeded, with a clear error."""
+    """One seeded gymnasium env (no vector env: episodes are reset explicitly), or a one-line error."""
     try:
         env = gym.make(env_id, render_mode=render_mode)
     except gym.error.Error as e:
         raise SystemExit(f"error: cannot make environment '{env_id}' ({e}); check --env-id") from None
     if not isinstance(env.action_space, gym.spaces.Box) or not isinstance(env.observation_space, gym.spaces.Box):
         raise SystemExit(f"error: '{env_id}' needs Box observation and action spaces")
-    env = gym.wrappers.RecordEpisodeStatistics(env)
     env.action_space.seed(seed)
-    env.observation_space.seed(seed)
-    return env
+    return gym.wrappers.RecordEpisodeStatistics(env)
 
 
 def seed_everything(seed: int, torch_deterministic: bool = True) -> None:
@@ -329,27 +327,23 @@ LOG_STD_MIN = -5
 
 
 class Actor(nn.Module):
-    """tanh-squashed Gaussian policy; actions are scaled from [-1, 1] into the env's action box."""
+    """tanh-squashed Gaussian policy, actions scaled from [-1, 1] into the env's action box. Its log pi writes
+    log(1 - tanh(u)^2) as 2 (log 2 - u - softplus(-2u)): exact, and finite at the bounds."""
 
     def __init__(self, obs_dim: int, act_dim: int, action_low, action_high, hidden_dim: int = 256):
         super().__init__()
         self.net = nn.Sequential(nn.Linear(obs_dim, hidden_dim), nn.ReLU(), nn.Linear(hidden_dim, hidden_dim), nn.ReLU())
-        self.fc_mean = nn.Linear(hidden_dim, act_dim)
-        self.fc_logstd = nn.Linear(hidden_dim, act_dim)
-        low = torch.as_tensor(action_low, dtype=torch.float32)
-        high = torch.as_tensor(action_high, dtype=torch.float32)
+        self.fc_mean, self.fc_logstd = nn.Linear(hidden_dim, act_dim), nn.Linear(hidden_dim, act_dim)
+        low, high = torch.as_tensor(action_low, dtype=torch.float32), torch.as_tensor(action_high, dtype=torch.float32)
         self.register_buffer("action_scale", (high - low) / 2.0)
         self.register_buffer("action_bias", (high + low) / 2.0)
 
     def forward(self, obs):
         h = self.net(obs)
-        log_std = torch.tanh(self.fc_logstd(h))
-        log_std = LOG_STD_MIN + 0.5 * (LOG_STD_MAX - LOG_STD_MIN) * (log_std + 1)
+        log_std = LOG_STD_MIN + 0.5 * (LOG_STD_MAX - LOG_STD_MIN) * (torch.tanh(self.fc_logstd(h)) + 1)
         return self.fc_mean(h), log_std
 
-    def _log_prob(self, u, noise, log_std):
-        """log pi(a|s) for a = tanh(u) * scale + bias, u = mean + std * noise.
-        log(1 - tanh(u)^2) is written as 2 (log 2 - u - softplus(-2u)): exact, and finite at the bounds."""
+    def _log_prob(self, u, noise, log_std):  # log pi(a|s) for a = tanh(u) * scale + bias, u = mean + std * noise
         gauss = -0.5 * noise.pow(2) - log_std - 0.5 * np.log(2 * np.pi)
         squash = 2.0 * (np.log(2.0) - u - F.softplus(-2.0 * u)) + torch.log(self.action_scale)
         return (gauss - squash).sum(-1)
@@ -359,14 +353,12 @@ class Actor(nn.Module):
         mean, log_std = self(obs)
         noise = torch.randn_like(mean)
         u = mean + log_std.exp() * noise
-        action = torch.tanh(u) * self.action_scale + self.action_bias
-        return action, self._log_prob(u, noise, log_std)
+        return torch.tanh(u) * self.action_scale + self.action_bias, self._log_prob(u, noise, log_std)
 
     def log_prob(self, obs, action, eps: float = 1e-6):
         """log pi(action|obs) of given env-unit actions (e.g. expert actions), clamped inside the box."""
         mean, log_std = self(obs)
-        y = ((action - self.action_bias) / self.action_scale).clamp(-1 + eps, 1 - eps)
-        u = torch.atanh(y)
+        u = torch.atanh(((action - self.action_bias) / self.action_scale).clamp(-1 + eps, 1 - eps))
         return self._log_prob(u, (u - mean) / log_std.exp(), log_std)
 
     def deterministic(self, obs):
@@ -381,16 +373,15 @@ class Actor(nn.Module):
 
 def actor_file(actor: Actor, env_id: str, **extra) -> dict:
     """What actor.pt holds: the actor and what rebuilds it (`expert.py --record-from` reads any script's)."""
-    obs_dim, hidden_dim, act_dim = actor.net[0].in_features, actor.fc_mean.in_features, actor.fc_mean.out_features
-    return {"actor": actor.state_dict(), "env_id": env_id, "obs_dim": obs_dim, "act_dim": act_dim,
-            "hidden_dim": hidden_dim, **extra}
+    return {"actor": actor.state_dict(), "env_id": env_id, "obs_dim": actor.net[0].in_features,
+            "act_dim": actor.fc_mean.out_features, "hidden_dim": actor.fc_mean.in_features, **extra}
 # --- end shared: actor ---
 
 
-# --- shared: sac ---
+# --- shared: critic ---
 class TwinQ(nn.Module):
-    """Two Q-networks as one module: every weight has a leading dimension of 2, so each layer of
-    both critics is a single batched matmul. forward returns Q-values of shape (2, batch)."""
+    """Two Q-networks as one module: every weight has a leading dimension of 2, so each layer of both critics
+    is one batched matmul. forward returns Q-values of shape (2, batch)."""
 
     def __init__(self, obs_dim: int, act_dim: int, hidden_dim: int = 256, num_q: int = 2):
         super().__init__()
@@ -402,21 +393,21 @@ class TwinQ(nn.Module):
             self.biases.append(nn.Parameter(torch.empty(num_q, 1, fan_out).uniform_(-bound, bound)))
 
     def forward(self, obs, action, detach_params: bool = False):
+        """detach_params: gradients flow to the input (the action) only."""
         x = torch.cat([obs, action], -1).unsqueeze(0).expand(len(self.weights[0]), -1, -1)
         for i, (w, b) in enumerate(zip(self.weights, self.biases)):
-            if detach_params:  # gradients flow to the input (the action) only
-                w, b = w.detach(), b.detach()
-            x = torch.baddbmm(b, x, w)
+            x = torch.baddbmm(b.detach(), x, w.detach()) if detach_params else torch.baddbmm(b, x, w)
             x = F.relu(x) if i < len(self.weights) - 1 else x
         return x.squeeze(-1)
+# --- end shared: critic ---
 
 
+# --- shared: sac ---
 class SAC:
-    """Actor, twin critics, target critics and the temperature, each with its optimiser; one `update` per
-    env step. absorbing=True (DAC's absorbing states, `--termination-remedy absorbing`): observations carry
-    a last indicator column, 1 at the absorbing state that follows a termination. The actor never sees
-    that column; at the absorbing state the only action is zero, so it has no entropy term and no actor
-    or temperature loss."""
+    """Actor, twin critics, target critics and the temperature, with their optimisers; one `update` per env
+    step. absorbing=True (DAC's absorbing states, `--termination-remedy absorbing`): observations carry a last
+    indicator column, 1 at the absorbing state that follows a termination. The actor never sees it; at the
+    absorbing state the only action is zero, so it has no entropy term and no actor or temperature loss."""
 
     def __init__(self, obs_dim, act_dim, action_low, action_high, args, device, absorbing: bool = False):
         self.absorbing, self.gamma, self.tau, self.target_entropy = absorbing, args.gamma, args.tau, -float(act_dim)
@@ -446,9 +437,8 @@ class SAC:
         return rewards + (1.0 - terminations) * self.gamma * next_q
 
     def critic_loss(self, obs, actions, next_obs, rewards, terminations):
-        target = self.td_target(next_obs, rewards, terminations)
         q = self.qf(obs, actions)
-        return (q - target).pow(2).mean(1).sum(), q.mean()
+        return (q - self.td_target(next_obs, rewards, terminations)).pow(2).mean(1).sum(), q.mean()
 
     def actor_loss(self, obs):
         actions, log_pi = self.policy(obs)
@@ -457,9 +447,8 @@ class SAC:
         if self.absorbing:  # nothing to learn at the absorbing state: average over the other states
             live = 1.0 - obs[:, -1]
             mean = lambda x: (x * live).sum() / live.sum().clamp_min(1.0)
-        actor_loss = mean(self.log_alpha.detach().exp() * log_pi - q)
         alpha_loss = -mean(self.log_alpha.exp() * (log_pi.detach() + self.target_entropy))
-        return actor_loss, alpha_loss, -mean(log_pi.detach())
+        return mean(self.log_alpha.detach().exp() * log_pi - q), alpha_loss, -mean(log_pi.detach())
 
     def update(self, obs, actions, next_obs, rewards, terminations, prefix: str = "losses/") -> dict:
         """One SAC step: critics, then actor and temperature on the updated critics, then targets.
@@ -478,28 +467,26 @@ class SAC:
         else:
             actor_loss.backward()
         self.actor_optimizer.step()
-
         with torch.no_grad():
             torch._foreach_lerp_(list(self.qf_target.parameters()), list(self.qf.parameters()), self.tau)
-        metrics = dict(qf_loss=qf_loss, qf_values=q_mean, actor_loss=actor_loss, alpha_loss=alpha_loss, entropy=entropy)
-        metrics["alpha"] = self.log_alpha.exp()
+        metrics = dict(qf_loss=qf_loss, qf_values=q_mean, actor_loss=actor_loss, alpha_loss=alpha_loss, entropy=entropy,
+                       alpha=self.log_alpha.exp())
         return {prefix + name: value.detach() for name, value in metrics.items()}
 
-    def parts(self) -> dict:
-        parts = dict(actor=self.actor, qf=self.qf, qf_target=self.qf_target, q_optimizer=self.q_optimizer,
-                     actor_optimizer=self.actor_optimizer, alpha_optimizer=self.alpha_optimizer)
-        return {name: part for name, part in parts.items() if part is not None}
-
     def state_dict(self) -> dict:
-        """Networks, temperature and optimisers: all a resumed run needs (CORL's pattern)."""
-        return {name: part.state_dict() for name, part in self.parts().items()} | {"log_alpha": self.log_alpha.detach()}
+        """Networks, optimisers and temperature: all a resumed run needs (CORL's pattern)."""
+        parts = {name: part.state_dict() for name, part in vars(self).items() if hasattr(part, "load_state_dict")}
+        return parts | {"log_alpha": self.log_alpha.detach()}
 
     def load_state_dict(self, state: dict) -> None:
-        for name, part in self.parts().items():
-            part.load_state_dict(state[name])
+        for name, part in vars(self).items():
+            if hasattr(part, "load_state_dict"):
+                part.load_state_dict(state[name])
         self.log_alpha.data.copy_(state["log_alpha"])
+# --- end shared: sac ---
 
 
+# --- shared: buffer ---
 class Batch(NamedTuple):
     obs: torch.Tensor
     actions: torch.Tensor
@@ -513,18 +500,13 @@ class ReplayBuffer:
     """Preallocated transitions, one row each: [obs | action | next_obs | reward | terminated | extra]."""
 
     def __init__(self, obs_dim: int, act_dim: int, capacity: int, device, extra_dim: int = 0):
-        self.obs_dim, self.act_dim, self.capacity = obs_dim, act_dim, capacity
+        self.obs_dim, self.act_dim, self.capacity, self.pos, self.size = obs_dim, act_dim, capacity, 0, 0
         self.storage = torch.zeros(capacity, 2 * obs_dim + act_dim + 2 + extra_dim, dtype=torch.float32, device=device)
-        self.pos, self.size = 0, 0
 
     def add(self, obs, action, next_obs, reward, terminated, extra=()):
         row = np.concatenate([obs, action, next_obs, [reward, float(terminated)], extra]).astype(np.float32)
         self.storage[self.pos].copy_(torch.from_numpy(row))
-        self.pos = (self.pos + 1) % self.capacity
-        self.size = min(self.size + 1, self.capacity)
-
-    def sample(self, batch_size: int, recent: Optional[int] = None) -> Batch:
-        return self.batch(self.indices(batch_size, recent))
+        self.pos, self.size = (self.pos + 1) % self.capacity, min(self.size + 1, self.capacity)
 
     def indices(self, batch_size: int, recent: Optional[int] = None) -> torch.Tensor:
         """Uniform rows; with `recent`, only from the last `recent` added (a FIFO buffer of that size)."""
@@ -537,13 +519,16 @@ class ReplayBuffer:
         return Batch(rows[:, :o], rows[:, o : o + a], rows[:, o + a : 2 * o + a], rows[:, 2 * o + a],
                      rows[:, 2 * o + a + 1], rows[:, 2 * o + a + 2 :])
 
-    def state_dict(self):
+    def sample(self, batch_size: int, recent: Optional[int] = None) -> Batch:
+        return self.batch(self.indices(batch_size, recent))
+
+    def state_dict(self) -> dict:
         return {"storage": self.storage[: self.size].cpu().clone(), "pos": self.pos, "size": self.size}
 
-    def load_state_dict(self, state):
+    def load_state_dict(self, state: dict) -> None:
         self.size, self.pos = state["size"], state["pos"]
         self.storage[: self.size].copy_(state["storage"])
-# --- end shared: sac ---
+# --- end shared: buffer ---
 
 
 # --- shared: demonstrations ---
@@ -553,25 +538,23 @@ STATE_ONLY_METHODS = "gaifo.py, bco.py, rile.py --state-only or drail_disc.py --
 
 
 def load_demonstrations(path: str, env: gym.Env, num_trajs: Optional[int] = None, state_only: bool = False) -> dict:
-    """Load experts/<env-id>.npz (format in README), check it belongs to `env`, keep the first
-    `num_trajs` episodes. With `state_only` the actions are dropped (a file without them loads); without,
-    they are required. Every problem is one clear SystemExit line."""
-    env_id = env.spec.id
+    """experts/<env-id>.npz (format in README), checked against `env`, cut to its first `num_trajs` episodes.
+    With `state_only` the actions are dropped (a file without them loads). Each problem is one SystemExit line."""
+    env_id, obs_dim, act_dim = env.spec.id, env.observation_space.shape[0], env.action_space.shape[0]
+    record = f"`python expert.py --env-id {env_id}`"
     if not os.path.isfile(path):
-        raise SystemExit(f"error: no demonstrations at '{path}'; record them with "
-                         f"`python expert.py --env-id {env_id}` or pass --expert-path")
+        raise SystemExit(f"error: no demonstrations at '{path}'; record them with {record} or pass --expert-path")
     try:
         with np.load(path, allow_pickle=False) as f:
             data = {k: f[k] for k in f.files}
-        meta = json.loads(str(data["metadata"])) if "metadata" in data else None
+        meta = json.loads(str(data.pop("metadata"))) if "metadata" in data else None
     except Exception as e:
         raise SystemExit(f"error: demonstrations '{path}' are unreadable or corrupt ({type(e).__name__}: {e}); "
-                         f"record them again with `python expert.py --env-id {env_id}`") from None
+                         f"record them again with {record}") from None
     if meta is None:
         raise SystemExit(f"error: '{path}' is not in this project's format (no metadata); convert it with "
                          f"`python demos.py convert {path} --env-id {env_id}`")
-    missing = [k for k in DEMO_KEYS if k not in data]
-    if missing:
+    if missing := [k for k in DEMO_KEYS if k not in data]:
         raise SystemExit(f"error: demonstrations '{path}' lack {missing}; record them again with expert.py")
     if state_only:
         data.pop("actions", None)  # never seen by a state-only method
@@ -581,30 +564,24 @@ def load_demonstrations(path: str, env: gym.Env, num_trajs: Optional[int] = None
     if meta.get("env_id") != env_id:
         raise SystemExit(f"error: demonstrations '{path}' were recorded on {meta.get('env_id')}, not {env_id}; "
                          f"pass the file for {env_id} with --expert-path")
-    obs_dim, act_dim = env.observation_space.shape[0], env.action_space.shape[0]
     act_shape = data["actions"].shape[1:] if "actions" in data else (act_dim,)
     if data["observations"].shape[1:] != (obs_dim,) or act_shape != (act_dim,):
         raise SystemExit(f"error: demonstrations '{path}' have obs/act dims {data['observations'].shape[1:]}/"
                          f"{act_shape}, {env_id} has ({obs_dim},)/({act_dim},)")
-    num_episodes = len(data["episode_lengths"])
     if num_trajs is not None:
-        if not 1 <= num_trajs <= num_episodes:
-            raise SystemExit(f"error: --num-expert-trajs {num_trajs}, but '{path}' holds {num_episodes} episodes")
+        if not 1 <= num_trajs <= len(data["episode_lengths"]):
+            raise SystemExit(f"error: --num-expert-trajs {num_trajs}, but '{path}' holds "
+                             f"{len(data['episode_lengths'])} episodes")
         end = int(data["episode_starts"][num_trajs - 1] + data["episode_lengths"][num_trajs - 1])
-        for k in ("observations", "actions", "next_observations", "rewards", "terminations", "truncations"):
-            if k in data:
-                data[k] = data[k][:end]
-        for k in ("episode_starts", "episode_lengths", "episode_returns"):
-            data[k] = data[k][:num_trajs]
-    data["metadata"] = meta
-    return data
+        data |= {k: data[k][: num_trajs if k.startswith("episode_") else end] for k in (*DEMO_KEYS, "actions") if k in data}
+    return data | {"metadata": meta}
 # --- end shared: demonstrations ---
 
 
 # --- shared: evaluation ---
-def evaluate(act, env_id: str, num_episodes: int, seed: int, capture_video_dir: Optional[str] = None):
-    """Deterministic policy on its own env; episode i starts from reset(seed=seed + i), so every
-    evaluation of a run sees the same start states. Returns the list of episode returns."""
+def evaluate(act, env_id: str, num_episodes: int, seed: int, capture_video_dir: Optional[str] = None) -> list:
+    """Returns of the deterministic policy on its own env; episode i starts from reset(seed=seed + i), so
+    every evaluation of a run sees the same start states."""
     env = make_env(env_id, seed, render_mode="rgb_array" if capture_video_dir else None)
     if capture_video_dir:
         env = gym.wrappers.RecordVideo(env, capture_video_dir, episode_trigger=lambda ep: ep == 0, disable_logger=True)
@@ -614,8 +591,7 @@ def evaluate(act, env_id: str, num_episodes: int, seed: int, capture_video_dir: 
         done, ep_return = False, 0.0
         while not done:
             obs, reward, terminated, truncated, _ = env.step(act(obs, deterministic=True))
-            ep_return += float(reward)
-            done = terminated or truncated
+            ep_return, done = ep_return + float(reward), terminated or truncated
         returns.append(ep_return)
     env.close()
     return returns
@@ -626,14 +602,13 @@ def evaluate(act, env_id: str, num_episodes: int, seed: int, capture_video_dir: 
 class Run:
     """Everything around the method: the run directory (config.json, TensorBoard, results.json), evaluation
     every --eval-freq steps, a progress line every 30 s, a checkpoint every --checkpoint-freq steps and on
-    Ctrl-C / SIGTERM, and --resume. `stateful` names the objects with state_dict() / load_state_dict() (the
-    learners with their optimisers, the replay buffer; a plain dict is saved as it is): a checkpoint is
-    their states, the RNG states and the run's progress."""
+    Ctrl-C / SIGTERM, and --resume. A checkpoint holds the state_dict() of each object in `stateful` (the
+    learners with their optimisers, the replay buffer; a plain dict as it is), the RNG states and the progress."""
 
     def __init__(self, args, checkpoint: Optional[dict], stateful: dict, expert_return: Optional[float], device):
-        self.args, self.stateful = args, stateful
-        # None without it, or NaN: demonstrations without rewards
-        self.expert_return = expert_return if expert_return is not None and np.isfinite(expert_return) else None
+        self.args, self.stateful, self.evals, self.start_step, self.wall_offset = args, stateful, [], 0, 0.0
+        finite = expert_return is not None and np.isfinite(expert_return)  # NaN: demonstrations without rewards
+        self.expert_return = expert_return if finite else None
         default_name = f"{args.env_id}__{args.exp_name}__{args.seed}__{int(time.time())}"
         self.name = checkpoint["run_name"] if checkpoint else (args.run_name or default_name)
         self.dir = os.path.join("runs", self.name)
@@ -652,7 +627,6 @@ class Run:
         self.writer.add_text("hyperparameters", f"|param|value|\n|-|-|\n{table}")
         self.machine = {"host": platform.node(), "torch": torch.__version__, "threads": torch.get_num_threads(),
                         "device": str(device)}
-        self.evals, self.start_step, self.wall_offset = [], 0, 0.0
         if checkpoint:
             for name, obj in stateful.items():
                 if isinstance(obj, dict):
@@ -660,7 +634,12 @@ class Run:
                 else:
                     obj.load_state_dict(checkpoint[name])
             self.evals, self.start_step, self.wall_offset = checkpoint["evals"], checkpoint["step"], checkpoint["wall_time"]
-            set_rng_state(checkpoint["rng"])
+            rng = checkpoint["rng"]
+            random.setstate(rng["python"])
+            np.random.set_state(rng["numpy"])
+            torch.set_rng_state(rng["torch"])
+            if rng["cuda"] is not None and torch.cuda.is_available():
+                torch.cuda.set_rng_state_all(rng["cuda"])
             print(f"resumed {self.dir} at step {self.start_step}")
         self.stop_signal, self.sps, self.learn_steps, self.learn_time, self.last_print = 0, 0.0, 0, 0.0, 0.0
         signal.signal(signal.SIGINT, self.on_signal)
@@ -688,8 +667,7 @@ class Run:
         if step % args.eval_freq == 0 or step == args.total_timesteps:
             self.evaluate(step, act)
         if time.time() - self.last_print > 30 or step == args.total_timesteps:
-            self.last_print = time.time()
-            left = format_time((args.total_timesteps - step) / self.sps) if self.sps > 0 else "?"
+            self.last_print, left = time.time(), format_time((args.total_timesteps - step) / self.sps) if self.sps else "?"
             print(f"step {step}/{args.total_timesteps} | {self.sps:.0f} SPS | eval return {self.last_eval()}{status} | "
                   f"left {left}", flush=True)
         checkpoint_freq = getattr(args, "checkpoint_freq", 0)
@@ -711,36 +689,32 @@ class Run:
         self.write_results(finished=False)
 
     def last_eval(self) -> str:
-        if not self.evals:
-            return "-"
-        e = self.evals[-1]
-        versus = f" = {e['normalized']:.2f} x expert {self.expert_return:.1f}" if e["normalized"] is not None else ""
-        return f"{e['mean']:.1f} +- {e['std']:.1f}{versus} (step {e['step']})"
-
-    def save_checkpoint(self, step: int) -> None:
-        state = {name: dict(obj) if isinstance(obj, dict) else obj.state_dict() for name, obj in self.stateful.items()}
-        state.update(step=step, evals=self.evals, wall_time=self.wall_time(), rng=rng_state(), config=asdict(self.args),
-                     run_name=self.name)
-        path = os.path.join(self.dir, "checkpoint.pt")
-        torch.save(state, path + ".tmp")
-        os.replace(path + ".tmp", path)  # atomic: an interrupted save never leaves a broken checkpoint
+        e = self.evals[-1] if self.evals else None
+        versus = f" = {e['normalized']:.2f} x expert {self.expert_return:.1f}" if e and e["normalized"] is not None else ""
+        return f"{e['mean']:.1f} +- {e['std']:.1f}{versus} (step {e['step']})" if e else "-"
 
     def wall_time(self) -> float:
         return self.wall_offset + time.time() - self.start_time
 
+    def save_checkpoint(self, step: int) -> None:
+        state = {name: dict(obj) if isinstance(obj, dict) else obj.state_dict() for name, obj in self.stateful.items()}
+        rng = {"python": random.getstate(), "numpy": np.random.get_state(), "torch": torch.get_rng_state(),
+               "cuda": torch.cuda.get_rng_state_all() if torch.cuda.is_available() else None}
+        state |= dict(step=step, evals=self.evals, wall_time=self.wall_time(), rng=rng, config=asdict(self.args),
+                      run_name=self.name)
+        torch.save(state, os.path.join(self.dir, "checkpoint.pt.tmp"))
+        os.replace(os.path.join(self.dir, "checkpoint.pt.tmp"), os.path.join(self.dir, "checkpoint.pt"))  # atomic
+
     def write_results(self, finished: bool) -> None:
         """results.json: the run's config, its evaluation curve and where it ran (format in README)."""
         final = self.evals[-1] if self.evals else {}
-        results = {
-            "algo": self.args.exp_name, "env_id": self.args.env_id, "seed": self.args.seed, "finished": finished,
-            "evals": self.evals, "final_return": final.get("mean"), "final_normalized_return": final.get("normalized"),
-            "expert_return": self.expert_return, "wall_time_s": self.wall_time(), "sps": self.sps,
-            "machine": self.machine, "config": asdict(self.args),
-        }
-        path = os.path.join(self.dir, "results.json")
-        with open(path + ".tmp", "w") as f:
+        results = {"algo": self.args.exp_name, "env_id": self.args.env_id, "seed": self.args.seed, "finished": finished,
+                   "evals": self.evals, "final_return": final.get("mean"), "final_normalized_return": final.get("normalized"),
+                   "expert_return": self.expert_return, "wall_time_s": self.wall_time(), "sps": self.sps,
+                   "machine": self.machine, "config": asdict(self.args)}
+        with open(os.path.join(self.dir, "results.json.tmp"), "w") as f:
             json.dump(results, f, indent=1)
-        os.replace(path + ".tmp", path)
+        os.replace(os.path.join(self.dir, "results.json.tmp"), os.path.join(self.dir, "results.json"))
 
     def finish(self, act, models: dict, status: str = "") -> None:
         """The last checkpoint and results.json, the models (unless --no-save-model), a video (--capture-video)."""
@@ -766,8 +740,8 @@ def format_time(seconds: float) -> str:
 
 
 def resume(args):
-    """--resume: the saved checkpoint, and the saved run's config with the fields a user may change on
-    resume (total_timesteps, cuda, threads) taken from the command line where they differ from their defaults."""
+    """--resume: the saved checkpoint, and the saved run's config with the fields a user may change on resume
+    (total_timesteps, cuda, threads; expert.py's compile, cudagraphs) taken from the command line where given."""
     path = os.path.join(args.resume, "checkpoint.pt") if os.path.isdir(args.resume) else args.resume
     if not os.path.isfile(path):
         raise SystemExit(f"error: no checkpoint at '{path}'; pass --resume runs/<run> of a run that saved one")
@@ -781,19 +755,6 @@ def resume(args):
             setattr(saved, name, getattr(args, name))
     saved.resume = args.resume
     return saved, checkpoint
-
-
-def rng_state() -> dict:
-    return {"python": random.getstate(), "numpy": np.random.get_state(), "torch": torch.get_rng_state(),
-            "cuda": torch.cuda.get_rng_state_all() if torch.cuda.is_available() else None}
-
-
-def set_rng_state(state: dict) -> None:
-    random.setstate(state["python"])
-    np.random.set_state(state["numpy"])
-    torch.set_rng_state(state["torch"])
-    if state["cuda"] is not None and torch.cuda.is_available():
-        torch.cuda.set_rng_state_all(state["cuda"])
 # --- end shared: run ---
 
 

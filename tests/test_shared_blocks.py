@@ -1,7 +1,7 @@
 """The blocks the scripts copy (env, actor, SAC, demonstrations, absorbing states, evaluation, the run's
 plumbing, the discriminator, GAIL's and RILe's updates) must stay identical across scripts, and appear in one
 canonical order: the method's blocks first, then the plumbing. A fix made in one copy and not the others
-fails here."""
+fails here; `python tests/test_shared_blocks.py` copies gail.py's blocks into the others."""
 
 import re
 from pathlib import Path
@@ -10,8 +10,8 @@ ROOT = Path(__file__).resolve().parents[1]
 BLOCK = re.compile(r"^# --- shared: (?P<name>[\w ]+) ---\n(?P<body>.*?)^# --- end shared: (?P=name) ---$", re.S | re.M)
 # gail.py holds every plumbing block; every script holds those it needs, in this order
 REFERENCE = "gail.py"
-ORDER = ["discriminator", "gail", "rile", "env", "actor", "sac", "demonstrations", "expert data", "absorbing",
-         "evaluation", "run"]
+ORDER = ["discriminator", "gail", "rile", "env", "actor", "critic", "sac", "buffer", "demonstrations", "expert data",
+         "absorbing", "evaluation", "run"]
 SCRIPTS = ["expert.py", "gail.py", "rile.py", "airl.py", "gaifo.py", "iqlearn.py", "drail_disc.py", "bc.py", "bco.py"]
 
 
@@ -51,3 +51,14 @@ def test_block_pattern_detects_drift(tmp_path):
     b = tmp_path / "b.py"
     b.write_text("# --- shared: sac ---\nx = 2\n# --- end shared: sac ---\n")
     assert blocks(a)["sac"] == body and blocks(a)["sac"] != blocks(b)["sac"]
+
+
+if __name__ == "__main__":  # python tests/test_shared_blocks.py: copy gail.py's blocks into every script that holds them
+    reference = {m["name"]: m.group(0) for m in BLOCK.finditer((ROOT / REFERENCE).read_text())}
+    for name in SCRIPTS:
+        path = ROOT / name
+        text = path.read_text()
+        synced = BLOCK.sub(lambda m: reference.get(m["name"], m.group(0)), text)
+        if synced != text:
+            path.write_text(synced)
+            print(f"synced {name}")
