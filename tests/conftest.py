@@ -10,14 +10,11 @@ sys.path.insert(0, str(ROOT))
 FAST = ["--hidden-dim", "32", "--batch-size", "32", "--eval-episodes", "2"]
 
 
-# scripts with --threads (default 2): the tests run them on one, since two intra-op threads beside other busy
-# processes wait on each other at every small op (a 5 s run took over 300 s in a suite beside two training runs)
-THREADED = {"rile.py", "gail.py", "airl.py", "gaifo.py", "bco.py", "bc.py", "iqlearn.py", "drail_disc.py", "expert.py"}
-
-
 def run_script(script: str, *args: str, cwd: Path, check: bool = True, timeout: int = 300):
-    """Run a project script as a user would, from `cwd` (runs/ and experts/ land there)."""
-    if script in THREADED and not any(a.startswith("--threads") for a in args):
+    """Run a project script as a user would, from `cwd` (runs/ and experts/ land there). Scripts with a
+    --threads flag (default 2) run on one unless a test says otherwise: two intra-op threads beside other busy
+    processes wait on each other at every small op (a 5 s run took over 300 s in a suite beside two training runs)."""
+    if "threads: int" in (ROOT / script).read_text() and not any(a.startswith("--threads") for a in args):
         args = (*args, "--threads", "1")
     proc = subprocess.run([sys.executable, "-W", "ignore", str(ROOT / script), *args], cwd=cwd,
                           capture_output=True, text=True, timeout=timeout)
