@@ -38,7 +38,7 @@ def main():
     r_s = lambda obs, actions: rile.student_reward(trainer.actor, torch.cat([obs, actions], -1), args.termination_remedy)
 
     with torch.no_grad():
-        on_expert = r_s(expert["obs"], expert["actions"])
+        on_expert = r_s(expert["obs"], expert["actions"]) if "actions" in expert else None  # none with --state-only
         recent = rb.batch(torch.arange(max(0, rb.size - cli.recent), rb.size))
         on_student = r_s(recent.obs, recent.actions)
         student_at_expert = r_s(expert["obs"], student.actor.deterministic(expert["obs"][:, :-1]))
@@ -48,7 +48,11 @@ def main():
     frozen = ckpt["rile"]["frozen_at"]
     print(f"{cli.run_dir} at step {ckpt['step']}, gamma {args.gamma}, trainer "
           f"{'frozen at step ' + str(frozen) if frozen is not None else 'learning'}")
-    print(f"r_S on the demonstrations:               mean {on_expert.mean():7.3f}  std {on_expert.std():6.3f}")
+    if on_expert is not None:
+        print(f"r_S on the demonstrations:               mean {on_expert.mean():7.3f}  std {on_expert.std():6.3f}")
+    else:
+        print("r_S on the demonstrations:               not defined (--state-only: the trainer sees (s, a_S), the "
+              "demonstrations have no a)")
     print(f"r_S of the student's action at their states: mean {student_at_expert.mean():7.3f}")
     print(f"r_S on the student's living transitions:  mean {on_student[living].mean():7.3f}  std "
           f"{on_student[living].std():6.3f}  (newest {len(recent.obs)} of the replay buffer)")
