@@ -284,20 +284,21 @@ def plot_env(env_id: str, algos: dict, path: str) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(6, 4))
-    for algo, runs in algos.items():  # by name, then by length
+    fig, ax = plt.subplots(figsize=(8, 4))
+    for i, (algo, runs) in enumerate(algos.items()):  # by name, then by length
         steps = sorted(set.intersection(*[{e["step"] for e in r["evals"]} for r in runs]))  # steps every seed has
         curves = np.array([[{e["step"]: e["mean"] for e in r["evals"]}[s] for s in steps] for r in runs])
-        mean = curves.mean(0)
-        ax.plot(steps, mean, label=f"{algo} ({len(runs)} seeds)")
+        mean, color = curves.mean(0), plt.cm.tab10(i % 10)  # past ten curves the colours repeat, dashed
+        ax.plot(steps, mean, color=color, ls="-" if i < 10 else "--",
+                label=f"{algo} ({len(runs)} seed{'s' if len(runs) > 1 else ''})")
         if len(runs) > 1:
             se = curves.std(0, ddof=1) / math.sqrt(len(runs))
-            ax.fill_between(steps, mean - se, mean + se, alpha=0.25)
+            ax.fill_between(steps, mean - se, mean + se, color=color, alpha=0.25)
     expert = [r["expert_return"] for runs in algos.values() for r in runs if r.get("expert_return")]
     if expert:
         ax.axhline(np.mean(expert), color="k", ls="--", lw=1, label="expert")
     ax.set(title=env_id, xlabel="env steps", ylabel="evaluation return (mean ± s.e. over seeds)")
-    ax.legend(fontsize=8)
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1))  # beside the axes, off the curves
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)

@@ -116,6 +116,13 @@ def test_interrupted_job_resumes_finished_job_is_skipped(tmp_path):
         time.sleep(0.1)
     os.killpg(proc.pid, signal.SIGTERM)  # like a session ending: the sweep and its job are stopped
     proc.communicate(timeout=60)
+    deadline = time.time() + 120  # the sweep exits at once; its job first writes its checkpoint (slow under load)
+    while time.time() < deadline:
+        try:
+            os.killpg(proc.pid, 0)
+        except ProcessLookupError:
+            break
+        time.sleep(0.1)
     status = subprocess.run(sweep_cmd(results, 1500, "--status"), cwd=tmp_path, capture_output=True, text=True)
     assert "1 interrupted" in status.stdout, status.stdout
     stopped_at = json.loads(run_results.read_text())["evals"][-1]["step"]
