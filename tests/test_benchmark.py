@@ -13,7 +13,8 @@ import pytest
 import benchmark
 from conftest import ROOT
 
-TINY = ["--learning-starts", "100", "--eval-freq", "100", "--eval-episodes", "2", "--hidden-dim", "32", "--batch-size", "32"]
+TINY = ["--learning-starts", "100", "--eval-freq", "100", "--eval-episodes", "2", "--hidden-dim", "32", "--batch-size", "32",
+        "--threads", "1"]  # one intra-op thread: at two, beside busy processes, a resumed job ran past its 300 s
 
 
 # ---------------------------------------------------------------- statistics
