@@ -153,6 +153,9 @@ class Args:
     """weight of the one-centred gradient penalty"""
     disc_level_lr: float = 1e-2
     """learning rate of the logit's free level b (logit f + b - log pi; never paid to SAC); 0: no b"""
+    disc_policy_mix: float = 0.0
+    """log pi in the logit is that of (1 - mix) pi + mix Uniform(action box): bounds it below by
+    log(mix / box volume), so D cannot tell expert from learner by log pi alone; 0: the policy's own"""
 
     # Imitation arguments
     expert_path: Optional[str] = None
@@ -228,11 +231,14 @@ class AIRLDiscriminator(nn.Module):
         return {name: value.detach() for name, value in metrics.items()}
 
 
-def policy_log_prob(agent: "SAC", obs, actions):
-    """log pi(a|s) under the current actor; 0 at absorbing states, where the only action is zero."""
-    if not agent.absorbing:
-        return agent.actor.log_prob(obs, actions)
-    return agent.actor.log_prob(obs[:, :-1], actions) * (1 - obs[:, -1])
+def policy_log_prob(agent: "SAC", obs, actions, mix: float = 0.0):
+    """log pi(a|s) under the current actor, of its mixture with a uniform over the action box when mix > 0;
+    0 at absorbing states, where the only action is zero."""
+    log_pi = agent.actor.log_prob(obs[:, :-1] if agent.absorbing else obs, actions)
+    if mix > 0:
+        log_uniform = -torch.log(2 * agent.actor.action_scale).sum()
+        log_pi = torch.logaddexp(log_pi + np.log1p(-mix), log_uniform + np.log(mix))
+    return log_pi * (1 - obs[:, -1]) if agent.absorbing else log_pi
 
 
 @torch.no_grad()
@@ -262,8 +268,8 @@ def airl_update(agent: "SAC", disc: AIRLDiscriminator, rb: "ReplayBuffer", exper
     expert_x = tuple(expert[k][idx] for k in ("obs", "actions", "next_obs", "terminations"))
     policy_x = (policy.obs, policy.actions, policy.next_obs, policy.terminations)
     with torch.no_grad():  # log pi of the current policy, detached (expert actions clamped inside the box)
-        expert_log_pi = policy_log_prob(agent, expert_x[0], expert_x[1])
-        policy_log_pi = policy_log_prob(agent, policy.obs, policy.actions)
+        expert_log_pi = policy_log_prob(agent, expert_x[0], expert_x[1], args.disc_policy_mix)
+        policy_log_pi = policy_log_prob(agent, policy.obs, policy.actions, args.disc_policy_mix)
     return metrics | disc.update(expert_x, policy_x, expert_log_pi, policy_log_pi)
 
 
@@ -781,6 +787,8 @@ if __name__ == "__main__":
     args, checkpoint = resume(args) if args.resume else (args, None)
     torch.set_num_threads(args.threads)
     device = torch.device("cuda" if torch.cuda.is_available() and args.cuda else "cpu")
+    if not 0 <= args.disc_policy_mix < 1:
+        raise SystemExit(f"error: --disc-policy-mix {args.disc_policy_mix} is not in [0, 1)")
     seed_everything(args.seed, args.torch_deterministic)
     env = make_env(args.env_id, args.seed)
     obs_dim, act_dim = env.observation_space.shape[0], env.action_space.shape[0]

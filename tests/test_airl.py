@@ -2,6 +2,7 @@
 by hand, relabelling from the current networks, and short runs through every update path."""
 
 import json
+import math
 
 import numpy as np
 import pytest
@@ -94,7 +95,8 @@ def test_end_to_end(run, tmp_path):
     common = ["--env-id", "InvertedPendulum-v4", "--total-timesteps", "500", "--learning-starts", "200",
               "--eval-freq", "250", "--eval-episodes", "2", "--hidden-dim", "32", "--batch-size", "32",
               "--num-expert-trajs", "2", "--expert-path", str(ROOT / "experts/InvertedPendulum-v4.npz")]
-    out = run("airl.py", *common, "--run-name", "a", "--expert-action-noise", "0.2", "--termination-remedy", "none").stdout
+    out = run("airl.py", *common, "--run-name", "a", "--expert-action-noise", "0.2", "--termination-remedy", "none",
+              "--disc-policy-mix", "0.1").stdout
     assert "AIRL reward: f" in out
     out = run("airl.py", *common, "--run-name", "b", "--reward", "g", "--state-only").stdout  # absorbing states: the default
     assert "AIRL reward: g (state-only g)" in out
@@ -108,6 +110,8 @@ def test_end_to_end(run, tmp_path):
     assert ("worth of falling" in out) or ("no falls" in out)
     proc = run("benchmarks/airl_rewards.py", "runs/a", check=False)  # a run without absorbing states
     assert proc.returncode != 0 and "--termination-remedy none" in proc.stderr
+    proc = run("airl.py", *common, "--run-name", "c", "--disc-policy-mix", "1", check=False)
+    assert proc.returncode != 0 and "--disc-policy-mix 1.0 is not in [0, 1)" in proc.stderr
 
 
 def test_log_pi_with_absorbing_states():
@@ -118,6 +122,24 @@ def test_log_pi_with_absorbing_states():
     actions = torch.tensor([[0.2], [0.0]])
     log_pi = airl.policy_log_prob(agent, obs, actions)
     assert log_pi[0].item() == pytest.approx(agent.actor.log_prob(obs[:1, :2], actions[:1]).item()) and log_pi[1].item() == 0.0
+
+
+def test_log_pi_mixed_with_uniform_by_hand():
+    """--disc-policy-mix m: log((1 - m) pi(a|s) + m / box volume), by hand for a 1-d Gaussian squashed into [-2, 2]."""
+    agent = airl.SAC(3, 1, -2 * np.ones(1), 2 * np.ones(1), airl.Args(hidden_dim=8), "cpu", absorbing=True)
+    for p in agent.actor.parameters():
+        nn.init.zeros_(p)  # mean 0, log std = (LOG_STD_MIN + LOG_STD_MAX) / 2 = -1.5 everywhere
+    obs = torch.tensor([[0.3, -0.4, 0.0], [0.0, 0.0, 1.0]])
+    actions = torch.tensor([[1.0], [0.0]])
+    std, u = math.exp(-1.5), math.atanh(0.5)  # a = 2 tanh(u)
+    log_pi = (-0.5 * (u / std) ** 2 - math.log(std) - 0.5 * math.log(2 * math.pi)
+              - math.log(1 - 0.5 ** 2) - math.log(2))  # Gaussian in u, minus log |da/du| = log(2 (1 - tanh(u)^2))
+    assert airl.policy_log_prob(agent, obs, actions)[0].item() == pytest.approx(log_pi, rel=1e-5)
+    mixed = airl.policy_log_prob(agent, obs, actions, mix=0.1)
+    assert mixed[0].item() == pytest.approx(math.log(0.9 * math.exp(log_pi) + 0.1 / 4), rel=1e-5)
+    assert mixed[1].item() == 0.0  # the absorbing state's only action
+    far = airl.policy_log_prob(agent, obs[:1], torch.tensor([[1.99]]), mix=0.1)  # far in the tail: the uniform's floor
+    assert far.item() == pytest.approx(math.log(0.1 / 4), abs=1e-3)
 
 
 def test_absorbing_anchor_by_hand():
