@@ -57,6 +57,9 @@ def main():
         # what SAC is paid: with the anchor, batches of the SAC batch size, as in training
         paid = torch.cat([airl.sac_reward(disc, rb.batch(idx), args.reward, anchor == "min")
                           for idx in torch.arange(max(0, rb.size - cli.recent), rb.size).split(args.batch_size)])
+        mix = ckpt["config"].get("disc_policy_mix", 0.0)  # log pi as the logit sees it
+        log_pi_expert = airl.policy_log_prob(agent, expert["obs"], expert["actions"], mix)
+        log_pi_policy = airl.policy_log_prob(agent, recent.obs, recent.actions, mix)
     at_abs = recent.obs[:, -1] > 0
     into_abs = (recent.next_obs[:, -1] > 0) & ~at_abs
     living = ~at_abs & ~into_abs
@@ -65,6 +68,10 @@ def main():
     print(f"f on the demonstrations:              mean {f_expert.mean():8.2f}  std {f_expert.std():6.2f}")
     print(f"f on the learner's living transitions: mean {f_policy[living].mean():8.2f}  std {f_policy[living].std():6.2f}"
           f"  (newest {len(recent.obs)} of the replay buffer)")
+    # far apart, D tells expert from learner by log pi alone and f learns little from the expert's side
+    print(f"log pi in the logit (median, 10th pct):  expert {log_pi_expert[expert['obs'][:, -1] == 0].median():.1f}, "
+          f"{log_pi_expert[expert['obs'][:, -1] == 0].quantile(0.1):.1f}; learner {log_pi_policy[~at_abs].median():.1f}, "
+          f"{log_pi_policy[~at_abs].quantile(0.1):.1f}")
     if at_abs.any():
         print(f"f into the absorbing state:           mean {f_policy[into_abs].mean():8.2f}  ({int(into_abs.sum())} falls)")
         print(f"f at the absorbing state:             mean {f_policy[at_abs].mean():8.2f}")

@@ -107,6 +107,7 @@ def test_end_to_end(run, tmp_path):
     # the reward check reads the checkpoint: f on the demonstrations, on the learner, and what falling is worth
     out = run("benchmarks/airl_rewards.py", "runs/b").stdout
     assert "at step 500" in out and "f on the demonstrations" in out and "f on the learner's living" in out
+    assert "log pi in the logit" in out
     assert ("worth of falling" in out) or ("no falls" in out)
     proc = run("benchmarks/airl_rewards.py", "runs/a", check=False)  # a run without absorbing states
     assert proc.returncode != 0 and "--termination-remedy none" in proc.stderr
