@@ -220,7 +220,7 @@ def test_terminations_are_stored_where_episodes_end_early(run, tmp_path):
 
 def test_interrupted_run_resumes_and_its_curve_continues(tmp_path):
     cmd = [sys.executable, "-W", "ignore", str(ROOT / "expert.py"), "--env-id", "InvertedPendulum-v4",
-           "--learning-starts", "100", "--eval-freq", "100", "--run-name", "int", "--no-record-demos", *FAST]
+           "--learning-starts", "100", "--eval-freq", "100", "--run-name", "int", "--no-record-demos", "--threads", "1", *FAST]
     proc = subprocess.Popen(cmd + ["--total-timesteps", "100000"], cwd=tmp_path, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True)
     results = tmp_path / "runs/int/results.json"
