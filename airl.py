@@ -16,7 +16,10 @@ Implementation choices and deviations
 2. h(s') is masked by (1 - terminated): a true termination has no future potential; a time-limit
    truncation keeps it (its next state is real). gamma in f is SAC's gamma.
 3. log pi(a|s) in the logit comes from the current actor, detached; expert actions are clamped inside
-   the action box first (Actor.log_prob), so the log-probability never diverges.
+   the action box first (Actor.log_prob), so the log-probability never diverges. `--disc-policy-mix m`
+   uses the log-density of (1 - m) pi + m Uniform(box) instead (an experiment, default 0): on Hopper-v4
+   the alpha-0.2 policy gave the expert's actions log pi far below the learner's, so D separated them
+   by log pi rather than by f (README, issue 16).
 4. g and h are 64-64 tanh MLPs (the paper's discriminator size), one Adam (lr 3e-5), 32 + 32 samples
    per update on the most recent 16,384 transitions, and the one-centred gradient penalty (weight 1)
    of gail.py on f over random interpolates of expert and learner (s, a, s'). `--state-only` makes g a

@@ -69,8 +69,9 @@ def main():
     print(f"f on the learner's living transitions: mean {f_policy[living].mean():8.2f}  std {f_policy[living].std():6.2f}"
           f"  (newest {len(recent.obs)} of the replay buffer)")
     # far apart, D tells expert from learner by log pi alone and f learns little from the expert's side
-    print(f"log pi in the logit (median, 10th pct):  expert {log_pi_expert[expert['obs'][:, -1] == 0].median():.1f}, "
-          f"{log_pi_expert[expert['obs'][:, -1] == 0].quantile(0.1):.1f}; learner {log_pi_policy[~at_abs].median():.1f}, "
+    log_pi_expert = log_pi_expert[expert["obs"][:, -1] == 0]  # the demonstrations' own states, not s_abs
+    print(f"log pi in the logit (median, 10th pct):  expert {log_pi_expert.median():.1f}, "
+          f"{log_pi_expert.quantile(0.1):.1f}; learner {log_pi_policy[~at_abs].median():.1f}, "
           f"{log_pi_policy[~at_abs].quantile(0.1):.1f}")
     if at_abs.any():
         print(f"f into the absorbing state:           mean {f_policy[into_abs].mean():8.2f}  ({int(into_abs.sum())} falls)")
