@@ -158,7 +158,8 @@ class Args:
     """learning rate of the logit's free level b (logit f + b - log pi; never paid to SAC); 0: no b"""
     disc_policy_mix: float = 0.0
     """log pi in the logit is that of (1 - mix) pi + mix Uniform(action box): bounds it below by
-    log(mix / box volume), so D cannot tell expert from learner by log pi alone; 0: the policy's own"""
+    log(mix / box volume), so D cannot tell expert from learner by log pi alone; 0: the policy's own;
+    1: the uniform's constant alone (D = sigmoid(f + b - const), GAIL's discriminator with AIRL's f)"""
 
     # Imitation arguments
     expert_path: Optional[str] = None
@@ -238,8 +239,10 @@ def policy_log_prob(agent: "SAC", obs, actions, mix: float = 0.0):
     """log pi(a|s) under the current actor, of its mixture with a uniform over the action box when mix > 0;
     0 at absorbing states, where the only action is zero."""
     log_pi = agent.actor.log_prob(obs[:, :-1] if agent.absorbing else obs, actions)
-    if mix > 0:
-        log_uniform = -torch.log(2 * agent.actor.action_scale).sum()
+    log_uniform = -torch.log(2 * agent.actor.action_scale).sum()
+    if mix == 1:  # the uniform alone: a constant, so D no longer sees the policy
+        log_pi = torch.full_like(log_pi, log_uniform.item())
+    elif mix > 0:
         log_pi = torch.logaddexp(log_pi + np.log1p(-mix), log_uniform + np.log(mix))
     return log_pi * (1 - obs[:, -1]) if agent.absorbing else log_pi
 
@@ -790,8 +793,8 @@ if __name__ == "__main__":
     args, checkpoint = resume(args) if args.resume else (args, None)
     torch.set_num_threads(args.threads)
     device = torch.device("cuda" if torch.cuda.is_available() and args.cuda else "cpu")
-    if not 0 <= args.disc_policy_mix < 1:
-        raise SystemExit(f"error: --disc-policy-mix {args.disc_policy_mix} is not in [0, 1)")
+    if not 0 <= args.disc_policy_mix <= 1:
+        raise SystemExit(f"error: --disc-policy-mix {args.disc_policy_mix} is not in [0, 1]")
     seed_everything(args.seed, args.torch_deterministic)
     env = make_env(args.env_id, args.seed)
     obs_dim, act_dim = env.observation_space.shape[0], env.action_space.shape[0]

@@ -111,8 +111,8 @@ def test_end_to_end(run, tmp_path):
     assert ("worth of falling" in out) or ("no falls" in out)
     proc = run("benchmarks/airl_rewards.py", "runs/a", check=False)  # a run without absorbing states
     assert proc.returncode != 0 and "--termination-remedy none" in proc.stderr
-    proc = run("airl.py", *common, "--run-name", "c", "--disc-policy-mix", "1", check=False)
-    assert proc.returncode != 0 and "--disc-policy-mix 1.0 is not in [0, 1)" in proc.stderr
+    proc = run("airl.py", *common, "--run-name", "c", "--disc-policy-mix", "1.5", check=False)
+    assert proc.returncode != 0 and "--disc-policy-mix 1.5 is not in [0, 1]" in proc.stderr
 
 
 def test_log_pi_with_absorbing_states():
@@ -141,6 +141,8 @@ def test_log_pi_mixed_with_uniform_by_hand():
     assert mixed[1].item() == 0.0  # the absorbing state's only action
     far = airl.policy_log_prob(agent, obs[:1], torch.tensor([[1.99]]), mix=0.1)  # far in the tail: the uniform's floor
     assert far.item() == pytest.approx(math.log(0.1 / 4), abs=1e-3)
+    uniform = airl.policy_log_prob(agent, obs, actions, mix=1.0)  # the uniform alone: D no longer sees pi
+    assert uniform[0].item() == pytest.approx(-math.log(4), rel=1e-6) and uniform[1].item() == 0.0
 
 
 def test_absorbing_anchor_by_hand():
