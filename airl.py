@@ -128,8 +128,9 @@ class Args:
     """tune the temperature towards -|A| (the paper fixes it at 0.2)"""
     hidden_dim: int = 256
     """width of the actor's and critics' two hidden layers"""
-    reward: Literal["f", "g"] = "f"
-    """the SAC reward: f = g(s, a) + gamma h(s') - h(s) (shaped), or the learned reward g alone"""
+    reward: Literal["f", "g", "softplus"] = "f"
+    """the SAC reward: f = g(s, a) + gamma h(s') - h(s) (shaped), the learned reward g alone, or
+    softplus = -log(1 - D) (GAIL's non-negative reward on AIRL's D, logit f + b - log pi)"""
     state_only: bool = False
     """g depends on the state only (the paper's variant for transfer)"""
     termination_remedy: Literal["none", "absorbing"] = "absorbing"
@@ -248,25 +249,32 @@ def policy_log_prob(agent: "SAC", obs, actions, mix: float = 0.0):
 
 
 @torch.no_grad()
-def sac_reward(disc: AIRLDiscriminator, batch: "Batch", reward: str, anchor: bool):
-    """SAC's reward for a batch from the current networks: f (or g); with the absorbing anchor, the
-    absorbing state's reward is the lowest g among the batch's living transitions."""
-    rewards = disc(batch.obs, batch.actions, batch.next_obs, batch.terminations) if reward == "f" else \
-        disc.reward_g(batch.obs, batch.actions)
+def sac_reward(disc: AIRLDiscriminator, batch: "Batch", reward: str, anchor: bool, log_pi=None):
+    """SAC's reward for a batch from the current networks: f, g, or softplus = -log(1 - D) with D's own
+    logit f + b - log pi (`log_pi` of the batch's actions); with the absorbing anchor, the absorbing
+    state's reward is the lowest g (softplus: the lowest reward) among the batch's living transitions."""
+    if reward == "softplus":
+        level = 0.0 if disc.level is None else disc.level
+        rewards = F.softplus(disc(batch.obs, batch.actions, batch.next_obs, batch.terminations) + level - log_pi)
+    else:
+        rewards = disc(batch.obs, batch.actions, batch.next_obs, batch.terminations) if reward == "f" else \
+            disc.reward_g(batch.obs, batch.actions)
     if not anchor:
         return rewards
     at_abs = batch.obs[:, -1] > 0
     if at_abs.all():
         return rewards
-    g_min = disc.reward_g(batch.obs, batch.actions)[~at_abs].min()
-    return torch.where(at_abs, g_min, rewards)
+    floor = (rewards if reward == "softplus" else disc.reward_g(batch.obs, batch.actions))[~at_abs].min()
+    return torch.where(at_abs, floor, rewards)
 
 
 def airl_update(agent: "SAC", disc: AIRLDiscriminator, rb: "ReplayBuffer", expert: dict, args) -> dict:
-    """One SAC update on f (or g) from the current discriminator, then one discriminator update."""
+    """One SAC update on f (or g, or softplus) from the current discriminator, then one discriminator update."""
     batch = rb.sample(args.batch_size)  # its env rewards are never used
     anchor = agent.absorbing and args.absorbing_anchor == "min"
-    rewards = sac_reward(disc, batch, args.reward, anchor)
+    with torch.no_grad():  # softplus: D's own log pi of the batch's actions
+        log_pi = policy_log_prob(agent, batch.obs, batch.actions, args.disc_policy_mix) if args.reward == "softplus" else None
+    rewards = sac_reward(disc, batch, args.reward, anchor, log_pi)
     metrics = agent.update(batch.obs, batch.actions, batch.next_obs, rewards, batch.terminations, prefix="losses/")
     metrics.update({"reward/learned_mean": rewards.mean(), "reward/learned_std": rewards.std()})
     idx = torch.randint(0, len(expert["obs"]), (args.disc_batch_size,), device=expert["obs"].device)

@@ -55,9 +55,10 @@ def main():
         f_policy = disc(recent.obs, recent.actions, recent.next_obs, recent.terminations)
         g_policy = disc.reward_g(recent.obs, recent.actions)  # h telescopes: g decides whether falling pays
         # what SAC is paid: with the anchor, batches of the SAC batch size, as in training
-        paid = torch.cat([airl.sac_reward(disc, rb.batch(idx), args.reward, anchor == "min")
-                          for idx in torch.arange(max(0, rb.size - cli.recent), rb.size).split(args.batch_size)])
         mix = ckpt["config"].get("disc_policy_mix", 0.0)  # log pi as the logit sees it
+        paid = torch.cat([airl.sac_reward(disc, b, args.reward, anchor == "min",
+                                          airl.policy_log_prob(agent, b.obs, b.actions, mix))
+                          for b in map(rb.batch, torch.arange(max(0, rb.size - cli.recent), rb.size).split(args.batch_size))])
         log_pi_expert = airl.policy_log_prob(agent, expert["obs"], expert["actions"], mix)
         log_pi_policy = airl.policy_log_prob(agent, recent.obs, recent.actions, mix)
     at_abs = recent.obs[:, -1] > 0

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 import torch
 import torch.nn as nn
+import torch.nn.functional as F
 
 import airl
 from conftest import ROOT
@@ -67,6 +68,8 @@ def make(monkeypatch, **kw):
 
     def capture(obs, actions, next_obs, rewards, terminations, prefix):  # the networks as they are at the SAC update
         want = disc(obs, actions, next_obs, terminations) if args.reward == "f" else disc.reward_g(obs, actions)
+        if args.reward == "softplus":  # -log(1 - D): D's logit with the current actor's log pi of the stored actions
+            want = F.softplus(disc(obs, actions, next_obs, terminations) - airl.policy_log_prob(agent, obs, actions))
         seen.append((rewards, want.detach()))
         return {}
 
@@ -74,7 +77,7 @@ def make(monkeypatch, **kw):
     return args, agent, disc, rb, expert, seen
 
 
-@pytest.mark.parametrize("reward", ["f", "g"])
+@pytest.mark.parametrize("reward", ["f", "g", "softplus"])
 def test_rewards_are_relabelled_from_the_current_networks(monkeypatch, reward):
     args, agent, disc, rb, expert, seen = make(monkeypatch, reward=reward)
     for _ in range(3):
@@ -166,6 +169,10 @@ def test_absorbing_anchor_by_hand():
     assert airl.sac_reward(disc, batch, "f", anchor=True).tolist() == pytest.approx([f[0], f[1], g_min])
     assert airl.sac_reward(disc, batch, "g", anchor=True).tolist() == pytest.approx([3.5, 2.0, g_min])
     assert airl.sac_reward(disc, batch, "f", anchor=False).tolist() == pytest.approx(f)  # learned: f as it is
+    log_pi = torch.tensor([-1.0, 0.5, 0.0])  # softplus: -log(1 - D) of the logit f - log pi (no level here)
+    paid = [math.log1p(math.exp(f[0] + 1.0)), math.log1p(math.exp(f[1] - 0.5))]
+    assert airl.sac_reward(disc, batch, "softplus", anchor=True, log_pi=log_pi).tolist() == pytest.approx(
+        paid + [min(paid)])  # the anchor: the lowest reward paid on a living transition
     disc.zero_absorbing_potential = False  # DAC's learned absorbing state: h(s_abs) = 2 + 1 = 3 is learned too
     assert disc(batch.obs, batch.actions, batch.next_obs, batch.terminations).tolist() == pytest.approx(
         [f[0], 2 + 0.9 * 3 - 3, 1 + 0.9 * 3 - 3])
@@ -189,3 +196,5 @@ def test_free_level_enters_the_logit_not_the_reward():
     assert metrics["disc/level"].item() == pytest.approx(1.9)
     batch = airl.Batch(*policy[:3], torch.zeros(1), policy[3], torch.zeros(1, 0))
     assert airl.sac_reward(disc, batch, "f", anchor=False).item() == pytest.approx(f_policy)  # b is never paid
+    softplus = airl.sac_reward(disc, batch, "softplus", anchor=False, log_pi=torch.tensor([0.5]))  # except inside D
+    assert softplus.item() == pytest.approx(math.log1p(math.exp(f_policy + 1.9 - 0.5)), rel=1e-6)
