@@ -6,31 +6,36 @@ https://arxiv.org/abs/1710.11248 (on TRPO; here on the shared SAC block).
 The discriminator is D(s, a, s') = exp f / (exp f + pi(a|s)) with f(s, a, s') = g(s, a) + gamma h(s') - h(s):
 g is the reward to recover, h a shaping potential. Its logit is f - log pi(a|s) under the current policy.
 Trained like GAIL's (expert = 1), it makes g a reward that transfers. `diff gail.py airl.py` shows what
-AIRL changes about GAIL.
+AIRL changes about GAIL. On SAC the paper's D and reward did not learn Hopper-v4 (0.30 x expert at 200k
+with absorbing states and the anchor of 7); the defaults of 1, 3 and 6 are what learned it (README).
 
 Implementation choices and deviations
-1. The SAC reward is f(s, a, s') (`--reward f`, default) or the unshaped g (`--reward g`), recomputed
-   with the current networks for every sampled batch. AIRL's policy objective is f - log pi: SAC's own
-   entropy term supplies the -alpha log pi part (exact at alpha = 1; with the paper's alpha = 0.2 it is
-   the standard approximation), so log pi is never subtracted from the reward as well.
+1. The SAC reward (`--reward`), recomputed with the current networks for every sampled batch:
+   softplus = -log(1 - D), GAIL's non-negative reward on AIRL's D (default; toshikwa's gail-airl-ppo and
+   CAIL pay AIRL's learner this way); f(s, a, s'), the paper's (AIRL's policy objective is f - log pi, and
+   SAC's own entropy term supplies the -alpha log pi part: exact at alpha = 1, the standard approximation
+   at 0.2); or the unshaped g. f and g are signed: with terminations terminal the Hopper-v4 learner fell
+   on purpose, and with absorbing states it stood still (README). softplus pays every step alive.
 2. h(s') is masked by (1 - terminated): a true termination has no future potential; a time-limit
    truncation keeps it (its next state is real). gamma in f is SAC's gamma.
-3. log pi(a|s) in the logit comes from the current actor, detached; expert actions are clamped inside
-   the action box first (Actor.log_prob), so the log-probability never diverges. `--disc-policy-mix m`
-   uses the log-density of (1 - m) pi + m Uniform(box) instead (an experiment, default 0): on Hopper-v4
-   the alpha-0.2 policy gave the expert's actions log pi far below the learner's, so D separated them
-   by log pi rather than by f (README, issue 16).
+3. log pi(a|s) in the logit (`--disc-policy-mix m`) is that of (1 - m) pi + m Uniform(action box). The
+   default m = 1 is the uniform alone, a constant, so D = sigmoid(f + b - const) does not see the policy.
+   m = 0 is the paper's D: log pi of the current actor, detached, expert actions clamped inside the box
+   first (Actor.log_prob) so it never diverges. With m = 0 on Hopper-v4 the alpha-0.2 policy gave the
+   expert's actions log pi of median -64 against the learner's -3.8: D told them apart by log pi alone
+   and f learned little from the expert's side (README, issue 16).
 4. g and h are 64-64 tanh MLPs (the paper's discriminator size), one Adam (lr 3e-5), 32 + 32 samples
    per update on the most recent 16,384 transitions, and the one-centred gradient penalty (weight 1)
    of gail.py on f over random interpolates of expert and learner (s, a, s'). `--state-only` makes g a
    function of s alone (the paper's transfer variant).
 5. The learned reward g is saved to runs/<run>/reward.pt for reuse.
-6. `--termination-remedy absorbing` (DAC, as in gail.py; the default here, because f is signed and with
-   terminations terminal the Hopper-v4 learner fell on purpose): terminations lead to an absorbing
-   state that loops to itself, for learner and expert alike; nothing is terminal any more; log pi at
-   the absorbing state is 0 (its only action is zero).
-7. The anchor at the absorbing state (`--absorbing-anchor min`, default; `learned` is DAC's learned
-   absorbing reward, as before). Falling at s and staying absorbed is worth g(s, a) - h(s) +
+6. `--termination-remedy none` (default): a termination ends bootstrapping; under the non-negative
+   softplus reward, ending an episode forfeits every later reward, so falling never pays. With the
+   signed f or g use `absorbing` (DAC, as in gail.py): terminations lead to an absorbing state that
+   loops to itself, for learner and expert alike; nothing is terminal any more; log pi at the absorbing
+   state is 0 (its only action is zero).
+7. The anchor at the absorbing state, with `absorbing` (`--absorbing-anchor min`, default; `learned` is
+   DAC's learned absorbing reward). Falling at s and staying absorbed is worth g(s, a) - h(s) +
    gamma g_abs / (1 - gamma), living sum_t gamma^t g_t - h(s): h telescopes, so only g_abs against the
    learner's g decides whether falling pays. Demonstrations that never end never reach the absorbing
    state, so AIRL does not identify g_abs there (g = r + const holds on the expert's support only); the
@@ -38,17 +43,18 @@ Implementation choices and deviations
    the learner's living f (README). `min` fixes what the data leave open: (a) h(s_abs) = 0, the
    potential of a terminal state in Ng et al.'s shaping theorem, in the discriminator and the reward
    alike; (b) the SAC reward at the absorbing state is the lowest g of the batch's living transitions
-   (detached), the largest value at which ending an episode never beats any step the learner takes.
-   Use `learned` where the demonstrations themselves end in terminations (goal-reaching tasks).
+   (detached; with softplus, the lowest reward), the largest value at which ending an episode never
+   beats any step the learner takes. Use `learned` where the demonstrations themselves end in
+   terminations (goal-reaching tasks).
 8. The logit has a free level: f + b - log pi(a|s), b one scalar with its own learning rate
    (`--disc-level-lr`, 1e-2; 0 removes it). The logit compares f with a log-density, whose level is
    set by the policy, not the task: the BCE's balance puts f near the mean of log pi on the expert's
-   and the learner's actions, tens of nats below zero on Hopper-v4. Without b, g and h reached that
-   level (f = -32 everywhere at 20k steps, -50 by 50k in the 200k run) only by saturating their tanh
+   and the learner's actions, tens of nats below zero on Hopper-v4 (m = 0). Without b, g and h reached
+   that level (f = -32 everywhere at 20k steps, -50 by 50k in the 200k run) only by saturating their tanh
    units, after which f's spread over states was 0.15 (20k steps) and SAC had almost nothing to learn
-   from. b takes the level at once, so g and h keep the shape of the reward. SAC is never paid b: a
-   constant changes no optimal policy on episodes that do not end, and with absorbing states the
-   anchor of 7 compares g with g.
+   from. b takes the level at once, so g and h keep the shape of the reward. f and g never include b
+   (a constant changes no optimal policy on episodes that do not end, and the anchor of 7 compares g
+   with g); softplus is D's own -log(1 - D), b included.
 
 Logged metrics: charts/episodic_return, charts/SPS, eval/return, eval/normalized_return,
 losses/{qf_loss,qf_values,actor_loss,alpha_loss,alpha,entropy}, losses/disc_loss, losses/disc_gp,
@@ -128,14 +134,15 @@ class Args:
     """tune the temperature towards -|A| (the paper fixes it at 0.2)"""
     hidden_dim: int = 256
     """width of the actor's and critics' two hidden layers"""
-    reward: Literal["f", "g", "softplus"] = "f"
-    """the SAC reward: f = g(s, a) + gamma h(s') - h(s) (shaped), the learned reward g alone, or
-    softplus = -log(1 - D) (GAIL's non-negative reward on AIRL's D, logit f + b - log pi)"""
+    reward: Literal["softplus", "f", "g"] = "softplus"
+    """the SAC reward: softplus = -log(1 - D) (GAIL's non-negative reward on AIRL's D, logit f + b - log pi),
+    f = g(s, a) + gamma h(s') - h(s) (the paper's, signed: use --termination-remedy absorbing), or g alone"""
     state_only: bool = False
     """g depends on the state only (the paper's variant for transfer)"""
-    termination_remedy: Literal["none", "absorbing"] = "absorbing"
-    """absorbing: DAC's absorbing states for agent and expert data (default); none: a termination ends
-    bootstrapping, and a negative f then pays the agent to fall (on Hopper-v4 it did, see README)"""
+    termination_remedy: Literal["none", "absorbing"] = "none"
+    """none: a termination ends bootstrapping (default; the softplus reward >= 0 pays to survive, but a
+    negative f or g pays the agent to fall: on Hopper-v4 it did, see README); absorbing: DAC's absorbing
+    states for agent and expert data"""
     absorbing_anchor: Literal["min", "learned"] = "min"
     """with absorbing states: min (h(s_abs) = 0 and the reward at s_abs is the batch's lowest living g,
     so falling never pays) or learned (the discriminator's own f at s_abs, DAC's treatment)"""
@@ -157,10 +164,10 @@ class Args:
     """weight of the one-centred gradient penalty"""
     disc_level_lr: float = 1e-2
     """learning rate of the logit's free level b (logit f + b - log pi; never paid to SAC); 0: no b"""
-    disc_policy_mix: float = 0.0
-    """log pi in the logit is that of (1 - mix) pi + mix Uniform(action box): bounds it below by
-    log(mix / box volume), so D cannot tell expert from learner by log pi alone; 0: the policy's own;
-    1: the uniform's constant alone (D = sigmoid(f + b - const), GAIL's discriminator with AIRL's f)"""
+    disc_policy_mix: float = 1.0
+    """log pi in the logit is that of (1 - mix) pi + mix Uniform(action box): 1 (default), the uniform's
+    constant alone (D = sigmoid(f + b - const) does not see the policy); 0, the paper's D with the
+    policy's own log pi; in between, bounded below by log(mix / box volume)"""
 
     # Imitation arguments
     expert_path: Optional[str] = None

@@ -69,7 +69,8 @@ def make(monkeypatch, **kw):
     def capture(obs, actions, next_obs, rewards, terminations, prefix):  # the networks as they are at the SAC update
         want = disc(obs, actions, next_obs, terminations) if args.reward == "f" else disc.reward_g(obs, actions)
         if args.reward == "softplus":  # -log(1 - D): D's logit with the current actor's log pi of the stored actions
-            want = F.softplus(disc(obs, actions, next_obs, terminations) - airl.policy_log_prob(agent, obs, actions))
+            log_pi = airl.policy_log_prob(agent, obs, actions, args.disc_policy_mix)
+            want = F.softplus(disc(obs, actions, next_obs, terminations) - log_pi)
         seen.append((rewards, want.detach()))
         return {}
 
@@ -77,9 +78,9 @@ def make(monkeypatch, **kw):
     return args, agent, disc, rb, expert, seen
 
 
-@pytest.mark.parametrize("reward", ["f", "g", "softplus"])
-def test_rewards_are_relabelled_from_the_current_networks(monkeypatch, reward):
-    args, agent, disc, rb, expert, seen = make(monkeypatch, reward=reward)
+@pytest.mark.parametrize("reward,mix", [("f", 1.0), ("g", 0.0), ("softplus", 1.0), ("softplus", 0.0)])
+def test_rewards_are_relabelled_from_the_current_networks(monkeypatch, reward, mix):
+    args, agent, disc, rb, expert, seen = make(monkeypatch, reward=reward, disc_policy_mix=mix)
     for _ in range(3):
         out = airl.airl_update(agent, disc, rb, expert, args)
         rewards, want = seen[-1]
@@ -98,10 +99,10 @@ def test_end_to_end(run, tmp_path):
     common = ["--env-id", "InvertedPendulum-v4", "--total-timesteps", "500", "--learning-starts", "200",
               "--eval-freq", "250", "--eval-episodes", "2", "--hidden-dim", "32", "--batch-size", "32",
               "--num-expert-trajs", "2", "--expert-path", str(ROOT / "experts/InvertedPendulum-v4.npz")]
-    out = run("airl.py", *common, "--run-name", "a", "--expert-action-noise", "0.2", "--termination-remedy", "none",
-              "--disc-policy-mix", "0.1").stdout
-    assert "AIRL reward: f" in out
-    out = run("airl.py", *common, "--run-name", "b", "--reward", "g", "--state-only").stdout  # absorbing states: the default
+    out = run("airl.py", *common, "--run-name", "a", "--expert-action-noise", "0.2", "--disc-policy-mix", "0.1").stdout
+    assert "AIRL reward: softplus" in out  # the default, with terminations terminal
+    out = run("airl.py", *common, "--run-name", "b", "--reward", "g", "--state-only", "--termination-remedy", "absorbing",
+              "--disc-policy-mix", "0").stdout  # the paper's D: the policy's own log pi
     assert "AIRL reward: g (state-only g)" in out
     results = json.loads((tmp_path / "runs/b/results.json").read_text())
     assert results["finished"] and [e["step"] for e in results["evals"]] == [250, 500]
