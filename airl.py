@@ -246,11 +246,12 @@ class AIRLDiscriminator(nn.Module):
 def policy_log_prob(agent: "SAC", obs, actions, mix: float = 0.0):
     """log pi(a|s) under the current actor, of its mixture with a uniform over the action box when mix > 0;
     0 at absorbing states, where the only action is zero."""
-    log_pi = agent.actor.log_prob(obs[:, :-1] if agent.absorbing else obs, actions)
     log_uniform = -torch.log(2 * agent.actor.action_scale).sum()
-    if mix == 1:  # the uniform alone: a constant, so D no longer sees the policy
-        log_pi = torch.full_like(log_pi, log_uniform.item())
-    elif mix > 0:
+    if mix == 1:  # the uniform alone: a constant, so D no longer sees the policy (and the actor is not run)
+        log_pi = log_uniform.expand(len(obs))
+    else:
+        log_pi = agent.actor.log_prob(obs[:, :-1] if agent.absorbing else obs, actions)
+    if 0 < mix < 1:
         log_pi = torch.logaddexp(log_pi + np.log1p(-mix), log_uniform + np.log(mix))
     return log_pi * (1 - obs[:, -1]) if agent.absorbing else log_pi
 
