@@ -215,12 +215,14 @@ class AIRLDiscriminator(nn.Module):
         h, h_next = self.potential(obs), self.potential(next_obs)
         return self.reward_g(obs, actions) + self.gamma * (1 - terminations) * h_next - h
 
+    def logit(self, x: tuple, log_pi):
+        """D's logit f + b - log pi for x = (obs, actions, next_obs, terminations)."""
+        return self(*x) + (0.0 if self.level is None else self.level) - log_pi
+
     def loss(self, expert: tuple, policy: tuple, expert_log_pi, policy_log_pi):
         """BCE on logits f + b - log pi (expert = 1) + gp_weight E[(||grad f(x_hat)|| - 1)^2], x_hat between
         expert and agent (s, a, s'); `expert` and `policy` are (obs, actions, next_obs, terminations)."""
-        level = 0.0 if self.level is None else self.level
-        expert_logits = self(*expert) + level - expert_log_pi
-        policy_logits = self(*policy) + level - policy_log_pi
+        expert_logits, policy_logits = self.logit(expert, expert_log_pi), self.logit(policy, policy_log_pi)
         bce = (F.binary_cross_entropy_with_logits(expert_logits, torch.ones_like(expert_logits))
                + F.binary_cross_entropy_with_logits(policy_logits, torch.zeros_like(policy_logits)))
         eps = torch.rand(len(expert[0]), 1, device=expert[0].device)
@@ -262,8 +264,7 @@ def sac_reward(disc: AIRLDiscriminator, batch: "Batch", reward: str, anchor: boo
     logit f + b - log pi (`log_pi` of the batch's actions); with the absorbing anchor, the absorbing
     state's reward is the lowest g (softplus: the lowest reward) among the batch's living transitions."""
     if reward == "softplus":
-        level = 0.0 if disc.level is None else disc.level
-        rewards = F.softplus(disc(batch.obs, batch.actions, batch.next_obs, batch.terminations) + level - log_pi)
+        rewards = F.softplus(disc.logit((batch.obs, batch.actions, batch.next_obs, batch.terminations), log_pi))
     else:
         rewards = disc(batch.obs, batch.actions, batch.next_obs, batch.terminations) if reward == "f" else \
             disc.reward_g(batch.obs, batch.actions)
