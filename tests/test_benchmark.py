@@ -165,3 +165,23 @@ def test_a_result_of_another_length_does_not_count_as_done(tmp_path):
     assert benchmark.job_state(job, str(tmp_path)) == "done"
     path.write_text("{broken")
     assert benchmark.job_state(job, str(tmp_path)) == "waiting"
+
+
+def test_scalars_averages_each_tag_between_evaluations(tmp_path, capsys):
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    import scalars
+    from torch.utils.tensorboard import SummaryWriter
+
+    writer = SummaryWriter(str(tmp_path))
+    for step, q in [(1, 2.0), (2, 4.0), (3, 9.0), (4, 1.0), (5, 3.0)]:
+        writer.add_scalar("losses/q", q, step)
+    writer.add_scalar("eval/return", 100.0, 3)
+    writer.add_scalar("eval/return", 50.0, 5)
+    writer.close()
+    rows = scalars.table(scalars.load(str(tmp_path)), ["losses/q"])
+    assert [(step, value) for step, value, _ in rows] == [(3, 100.0), (5, 50.0)]
+    assert [means[0] for _, _, means in rows] == [pytest.approx(5.0), pytest.approx(2.0)]  # (2+4+9)/3, (1+3)/2
+    with pytest.raises(SystemExit, match="not logged in this run: losses/nope"):
+        scalars.table(scalars.load(str(tmp_path)), ["losses/nope"])
+    with pytest.raises(SystemExit, match="no events"):
+        scalars.load(str(tmp_path / "empty"))
