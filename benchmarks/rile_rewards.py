@@ -2,6 +2,7 @@
 recent replay transitions, and at the absorbing state; then one deterministic episode of the student.
 Answers "is falling worth less than living, and is walking worth more than standing?" for a run with
 `--termination-remedy absorbing`: staying in the absorbing state forever is worth r_abs / (1 - gamma).
+Both trainer observations: (s, a_S), and (s, s') of `--state-only --trainer-obs transition`.
 
     python benchmarks/rile_rewards.py runs/bench__Walker2d-v4__rile-absorbing__1 [--recent 20000]
 """
@@ -19,13 +20,14 @@ from benchmarks.airl_rewards import open_run  # noqa: E402
 
 def main():
     cli, args, ckpt = open_run(rile, __doc__)
-    if args.termination_remedy != "absorbing" or args.trainer_obs != "state-action":
-        sys.exit(f"error: {cli.run_dir} was trained with --termination-remedy {args.termination_remedy} "
-                 f"--trainer-obs {args.trainer_obs}; this check is for absorbing-state runs whose trainer sees (s, a_S)")
+    if args.termination_remedy != "absorbing":
+        sys.exit(f"error: {cli.run_dir} was trained with --termination-remedy {args.termination_remedy}; "
+                 "this check is for runs with --termination-remedy absorbing")
+    transition = args.trainer_obs == "transition"
     env = rile.make_env(args.env_id, args.seed)
     obs_dim, act_dim = env.observation_space.shape[0], env.action_space.shape[0]
     low, high, device = env.action_space.low, env.action_space.high, torch.device("cpu")
-    trainer = rile.SAC(obs_dim + 1 + act_dim, 1, np.array([-1.0]), np.array([1.0]), rile.dataclasses.replace(
+    trainer = rile.SAC(obs_dim + 1 + (obs_dim + 1 if transition else act_dim), 1, np.array([-1.0]), np.array([1.0]), rile.dataclasses.replace(
         args, hidden_dim=args.trainer_hidden_dim, autotune=False), device)
     trainer.load_state_dict(ckpt["trainer"])
     student = rile.SAC(obs_dim + 1, act_dim, low, high, args, device, absorbing=True)
@@ -35,13 +37,17 @@ def main():
     demos = rile.load_demonstrations(args.expert_path or os.path.join("experts", f"{args.env_id}.npz"), env,
                                      args.num_expert_trajs, args.state_only)
     expert = rile.absorbing_expert(rile.expert_tensors(demos, args, low, high, device))
-    r_s = lambda obs, actions: rile.student_reward(trainer.actor, torch.cat([obs, actions], -1), args.termination_remedy)
+    def r_s(obs, actions, next_obs):
+        return rile.student_reward(trainer.actor, rile.trainer_input(obs, actions, next_obs, args.trainer_obs),
+                                   args.termination_remedy)
 
     with torch.no_grad():
-        on_expert = r_s(expert["obs"], expert["actions"]) if "actions" in expert else None  # none with --state-only
+        defined = transition or "actions" in expert  # the (s, a_S) trainer has no expert pairs with --state-only
+        on_expert = r_s(expert["obs"], expert.get("actions"), expert["next_obs"]) if defined else None
         recent = rb.batch(torch.arange(max(0, rb.size - cli.recent), rb.size))
-        on_student = r_s(recent.obs, recent.actions)
-        student_at_expert = r_s(expert["obs"], student.actor.deterministic(expert["obs"][:, :-1]))
+        on_student = r_s(recent.obs, recent.actions, recent.next_obs)
+        student_at_expert = None if transition else (  # the (s, s') trainer would need the s' they lead to
+            r_s(expert["obs"], student.actor.deterministic(expert["obs"][:, :-1]), None))
     at_abs, into_abs = recent.obs[:, -1] > 0, (recent.next_obs[:, -1] > 0) & (recent.obs[:, -1] == 0)
     living = ~at_abs & ~into_abs
     horizon = 1 / (1 - args.gamma)
@@ -53,7 +59,8 @@ def main():
     else:
         print("r_S on the demonstrations:               not defined (--state-only: the trainer sees (s, a_S), the "
               "demonstrations have no a)")
-    print(f"r_S of the student's action at their states: mean {student_at_expert.mean():7.3f}")
+    if student_at_expert is not None:
+        print(f"r_S of the student's action at their states: mean {student_at_expert.mean():7.3f}")
     print(f"r_S on the student's living transitions:  mean {on_student[living].mean():7.3f}  std "
           f"{on_student[living].std():6.3f}  (newest {len(recent.obs)} of the replay buffer)")
     if into_abs.any():
@@ -61,7 +68,7 @@ def main():
         print(f"r_S into the absorbing state:             mean {on_student[into_abs].mean():7.3f}  ({falls} falls)")
     with torch.no_grad():
         s_abs = torch.as_tensor(rile.absorbing_state(obs_dim)).unsqueeze(0)
-        r_abs = r_s(s_abs, torch.zeros(1, act_dim)).item()
+        r_abs = r_s(s_abs, torch.zeros(1, act_dim), s_abs).item()  # the absorbing state loops to itself
     print(f"r_S at the absorbing state:               {r_abs:7.3f}; worth of falling r_abs / (1 - gamma): "
           f"{r_abs * horizon:.1f}, of living at the student's mean: {on_student[living].mean() * horizon:.1f}")
 
@@ -69,10 +76,11 @@ def main():
     x0, rewards, done, steps = env.unwrapped.data.qpos[0], [], False, 0
     while not done:
         action = student.actor.act(obs, deterministic=True)
-        with torch.no_grad():
-            rewards.append(r_s(torch.as_tensor(np.append(obs, 0.0), dtype=torch.float32)[None],
-                               torch.as_tensor(action)[None]).item())
-        obs, _, terminated, truncated, _ = env.step(action)
+        next_obs, _, terminated, truncated, _ = env.step(action)
+        aug = lambda o: torch.as_tensor(np.append(o, 0.0), dtype=torch.float32)[None]
+        with torch.no_grad():  # a fall goes into the absorbing state
+            rewards.append(r_s(aug(obs), torch.as_tensor(action)[None], s_abs if terminated else aug(next_obs)).item())
+        obs = next_obs
         done, steps = terminated or truncated, steps + 1
     moved = env.unwrapped.data.qpos[0] - x0 if hasattr(env.unwrapped, "data") else float("nan")
     print(f"one deterministic episode: {steps} steps, {'fell' if terminated else 'time limit'}, moved {moved:.2f} "

@@ -151,6 +151,13 @@ def test_rile_trainer_observing_transitions(run, tmp_path):
     assert dynamics[1]["fs_rfdc"] is not None  # the trainer scores expert transitions
     ckpt = torch.load(tmp_path / "runs/t/checkpoint.pt", weights_only=False)
     assert ckpt["trainer"]["actor"]["net.0.weight"].shape[1] == 2 * 5
+    out = run("benchmarks/rile_rewards.py", "runs/t").stdout  # r_S on (s, s'): defined on the demonstrations too
+    assert "r_S on the demonstrations:               mean" in out and "r_S of the student's action" not in out
+    trainer = rile.Actor(2 * 5, 1, np.array([-1.0]), np.array([1.0]), ckpt["config"]["trainer_hidden_dim"])
+    trainer.load_state_dict(ckpt["trainer"]["actor"])
+    s_abs = [0.0, 0.0, 0.0, 0.0, 1.0]
+    r_abs = trainer.deterministic(torch.tensor([s_abs + s_abs])).item()  # (s_abs, s_abs): the absorbing loop
+    assert f"r_S at the absorbing state:               {r_abs:7.3f};" in out
 
 
 @pytest.mark.parametrize("flags, message", [
