@@ -51,6 +51,7 @@ Implementation choices and deviations
    observation (s', a'_S) stays a fresh sample from the current student (choice 2). `--trainer-obs
    transition` makes it observe (s, s') instead; its next observation (s', s'') then has to come from
    the step the student took next, as stored (an older student's; s' itself after a time limit).
+   On Hopper-v4 the two ended alike (0.87 and 0.86 x expert at 200k, one seed each; README).
    Expert action noise and the expert fractions need expert actions and are refused; FS-RFDC needs the
    trainer's reward on expert data and is not logged with the (s, a_S) trainer.
 
