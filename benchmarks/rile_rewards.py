@@ -27,8 +27,9 @@ def main():
     env = rile.make_env(args.env_id, args.seed)
     obs_dim, act_dim = env.observation_space.shape[0], env.action_space.shape[0]
     low, high, device = env.action_space.low, env.action_space.high, torch.device("cpu")
-    trainer = rile.SAC(obs_dim + 1 + (obs_dim + 1 if transition else act_dim), 1, np.array([-1.0]), np.array([1.0]), rile.dataclasses.replace(
-        args, hidden_dim=args.trainer_hidden_dim, autotune=False), device)
+    trainer_args = rile.dataclasses.replace(args, hidden_dim=args.trainer_hidden_dim, autotune=False)
+    trainer = rile.SAC(obs_dim + 1 + (obs_dim + 1 if transition else act_dim), 1, np.array([-1.0]), np.array([1.0]),
+                       trainer_args, device)
     trainer.load_state_dict(ckpt["trainer"])
     student = rile.SAC(obs_dim + 1, act_dim, low, high, args, device, absorbing=True)
     student.load_state_dict(ckpt["agent"])
