@@ -30,6 +30,10 @@ Implementation choices and deviations
 4. As in the authors' setup, no random warm-up: the stochastic policy acts from the first step and
    updates start once 1,280 transitions are stored. No observation normalisation.
 5. Logged for divergence checks: the implicit reward on expert and policy batches, each loss term.
+6. What stays unstable is the objective's own (README, issue 16): on Hopper-v4 two seeds of three keep
+   losing and finding a near-expert policy with no loss diverging. With `v0` only the chi^2 term acts on
+   the policy's states, so the critic's reward does not rank the expert's actions above the policy's;
+   `value` does, but makes each policy step worth less than a termination's 0, and the policy falls.
 
 Logged metrics: charts/episodic_return, charts/SPS, eval/return, eval/normalized_return,
 losses/{softq,value,chi2,critic,actor}, losses/q_expert, losses/q_policy, reward/implicit_expert,
