@@ -75,10 +75,10 @@ def main():
 
     obs, _ = env.reset(seed=args.seed + 100_000)  # the first evaluation episode
     x0, rewards, done, steps = env.unwrapped.data.qpos[0], [], False, 0
+    aug = lambda o: torch.as_tensor(np.append(o, 0.0), dtype=torch.float32)[None]  # a living state's indicator 0
     while not done:
         action = student.actor.act(obs, deterministic=True)
         next_obs, _, terminated, truncated, _ = env.step(action)
-        aug = lambda o: torch.as_tensor(np.append(o, 0.0), dtype=torch.float32)[None]
         with torch.no_grad():  # a fall goes into the absorbing state
             rewards.append(r_s(aug(obs), torch.as_tensor(action)[None], s_abs if terminated else aug(next_obs)).item())
         obs = next_obs

@@ -167,7 +167,7 @@ def test_a_result_of_another_length_does_not_count_as_done(tmp_path):
     assert benchmark.job_state(job, str(tmp_path)) == "waiting"
 
 
-def test_scalars_averages_each_tag_between_evaluations(tmp_path, capsys):
+def test_scalars_averages_each_tag_between_evaluations(tmp_path):
     sys.path.insert(0, str(ROOT / "benchmarks"))
     import scalars
     from torch.utils.tensorboard import SummaryWriter
