@@ -433,8 +433,9 @@ class SAC:
         return rewards + (1.0 - terminations) * self.gamma * next_q
 
     def critic_loss(self, obs, actions, next_obs, rewards, terminations):
-        q = self.qf(obs, actions)
-        return (q - self.td_target(next_obs, rewards, terminations)).pow(2).mean(1).sum(), q.mean()
+        """Both critics' squared TD errors, the mean Q-value, and the variance of the TD targets (their scale)."""
+        q, target = self.qf(obs, actions), self.td_target(next_obs, rewards, terminations)
+        return (q - target).pow(2).mean(1).sum(), q.mean(), target.var()
 
     def actor_loss(self, obs):
         actions, log_pi = self.policy(obs)
@@ -449,7 +450,7 @@ class SAC:
     def update(self, obs, actions, next_obs, rewards, terminations, prefix: str = "losses/") -> dict:
         """One SAC step: critics, then actor and temperature on the updated critics, then targets.
         Returns metric tensors keyed by their logged names (no .item() here: reading one synchronises)."""
-        qf_loss, q_mean = self.critic_loss(obs, actions, next_obs, rewards, terminations)
+        qf_loss, q_mean, target_var = self.critic_loss(obs, actions, next_obs, rewards, terminations)
         self.q_optimizer.zero_grad(set_to_none=False)
         qf_loss.backward()
         self.q_optimizer.step()
@@ -465,8 +466,8 @@ class SAC:
         self.actor_optimizer.step()
         with torch.no_grad():
             torch._foreach_lerp_(list(self.qf_target.parameters()), list(self.qf.parameters()), self.tau)
-        metrics = dict(qf_loss=qf_loss, qf_values=q_mean, actor_loss=actor_loss, alpha_loss=alpha_loss, entropy=entropy,
-                       alpha=self.log_alpha.exp())
+        metrics = dict(qf_loss=qf_loss, qf_values=q_mean, qf_target_var=target_var, actor_loss=actor_loss,
+                       alpha_loss=alpha_loss, entropy=entropy, alpha=self.log_alpha.exp())
         return {prefix + name: value.detach() for name, value in metrics.items()}
 
     def state_dict(self) -> dict:
@@ -654,6 +655,7 @@ class Run:
 
     def __init__(self, args, checkpoint: Optional[dict], stateful: dict, expert_return: Optional[float], device):
         self.args, self.stateful, self.evals, self.start_step, self.wall_offset = args, stateful, [], 0, 0.0
+        self.extra = {}  # what a script adds to results.json
         finite = expert_return is not None and np.isfinite(expert_return)  # NaN: demonstrations without rewards
         self.expert_return = expert_return if finite else None
         default_name = f"{args.env_id}__{args.exp_name}__{args.seed}__{int(time.time())}"
@@ -758,7 +760,7 @@ class Run:
         results = {"algo": self.args.exp_name, "env_id": self.args.env_id, "seed": self.args.seed, "finished": finished,
                    "evals": self.evals, "final_return": final.get("mean"), "final_normalized_return": final.get("normalized"),
                    "expert_return": self.expert_return, "wall_time_s": self.wall_time(), "sps": self.sps,
-                   "machine": self.machine, "config": asdict(self.args)}
+                   "machine": self.machine, "config": asdict(self.args)} | self.extra
         with open(os.path.join(self.dir, "results.json.tmp"), "w") as f:
             json.dump(results, f, indent=1)
         os.replace(os.path.join(self.dir, "results.json.tmp"), os.path.join(self.dir, "results.json"))

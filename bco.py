@@ -310,6 +310,7 @@ class Run:
 
     def __init__(self, args, checkpoint: Optional[dict], stateful: dict, expert_return: Optional[float], device):
         self.args, self.stateful, self.evals, self.start_step, self.wall_offset = args, stateful, [], 0, 0.0
+        self.extra = {}  # what a script adds to results.json
         finite = expert_return is not None and np.isfinite(expert_return)  # NaN: demonstrations without rewards
         self.expert_return = expert_return if finite else None
         default_name = f"{args.env_id}__{args.exp_name}__{args.seed}__{int(time.time())}"
@@ -414,7 +415,7 @@ class Run:
         results = {"algo": self.args.exp_name, "env_id": self.args.env_id, "seed": self.args.seed, "finished": finished,
                    "evals": self.evals, "final_return": final.get("mean"), "final_normalized_return": final.get("normalized"),
                    "expert_return": self.expert_return, "wall_time_s": self.wall_time(), "sps": self.sps,
-                   "machine": self.machine, "config": asdict(self.args)}
+                   "machine": self.machine, "config": asdict(self.args)} | self.extra
         with open(os.path.join(self.dir, "results.json.tmp"), "w") as f:
             json.dump(results, f, indent=1)
         os.replace(os.path.join(self.dir, "results.json.tmp"), os.path.join(self.dir, "results.json"))

@@ -148,9 +148,15 @@ class Args:
     trainer_tau: float = 0.005
     """the trainer's target smoothing coefficient"""
     trainer_freeze: bool = True
-    """freeze the trainer once its critic has converged"""
+    """freeze the trainer once its critic has converged (header, choice 5)"""
+    trainer_freeze_stat: Literal["relative", "loss"] = "relative"
+    """relative: the trainer's critic loss over the variance of its targets; loss: the raw critic loss (the paper's words)"""
     trainer_freeze_threshold: float = 0.1
-    """freeze when the moving average (0.99) of the trainer's critic loss falls below this"""
+    """freeze when the moving average (0.99) of --trainer-freeze-stat stays below this"""
+    trainer_freeze_window: int = 10_000
+    """env steps the statistic must stay below the threshold (0: the first crossing freezes)"""
+    trainer_freeze_after: Optional[int] = None
+    """never freeze before this env step (default: half of --total-timesteps)"""
     trainer_freeze_min_updates: int = 10_000
     """never freeze before this many trainer updates"""
     trainer_obs: Literal["state-action", "transition"] = "state-action"
@@ -163,6 +169,8 @@ class Args:
     """the discriminator's learning rate"""
     disc_batch_size: int = 128
     """expert pairs and agent pairs per discriminator update (each; even, for antithetic timesteps)"""
+    disc_update_every: int = 1
+    """one discriminator update every this many env steps"""
     disc_buffer_size: int = 16_384
     """the discriminator learns from this many most recent agent transitions"""
     diffusion_steps: int = 1000
@@ -285,15 +293,18 @@ def gail_reward(logits, form: str):
     raise ValueError(f"unknown reward form '{form}'; choose softplus, logit or log-d")
 
 
-def gail_update(agent: "SAC", disc: nn.Module, rb: "ReplayBuffer", expert: dict, args, state_only: bool = False) -> dict:
-    """One SAC update on rewards from the current discriminator, then one discriminator update. D scores
-    pairs (s, a), or with `state_only` transitions (s, s') (GAIfO: gaifo.py, drail_disc.py --state-only)."""
+def gail_update(agent: "SAC", disc: nn.Module, rb: "ReplayBuffer", expert: dict, args, state_only: bool = False,
+                update_disc: bool = True) -> dict:
+    """One SAC update on rewards from the current discriminator, then (if update_disc) one discriminator update.
+    D scores pairs (s, a), or with `state_only` transitions (s, s') (GAIfO: gaifo.py, drail_disc.py --state-only)."""
     seen = "next_obs" if state_only else "actions"  # what D sees beside s
     batch = rb.sample(args.batch_size)  # its env rewards are never used
     with torch.no_grad():
         rewards = gail_reward(disc(torch.cat([batch.obs, getattr(batch, seen)], -1)), args.reward_form)
     metrics = agent.update(batch.obs, batch.actions, batch.next_obs, rewards, batch.terminations, prefix="losses/")
     metrics.update({"reward/learned_mean": rewards.mean(), "reward/learned_std": rewards.std()})
+    if not update_disc:
+        return metrics
     idx = torch.randint(0, len(expert["obs"]), (args.disc_batch_size,), device=expert["obs"].device)
     policy = rb.sample(args.disc_batch_size, recent=args.disc_buffer_size)
     expert_x = torch.cat([expert["obs"][idx], expert[seen][idx]], -1)
@@ -352,11 +363,12 @@ def mix_expert(batch: "Batch", expert: dict, fraction: float) -> "Batch":
 
 
 def rile_update(student: "SAC", trainer: "SAC", disc: nn.Module, rb: "ReplayBuffer", expert: dict, args,
-                state: dict) -> dict:
-    """One round of the paper's Algorithm 2: student, discriminator, trainer. `state` holds frozen_at
-    (None, or the step from which the trainer no longer learns), reward_only (covariate shift: neither
-    trainer nor discriminator learns), critic_loss_ema and trainer_updates. `disc` is any discriminator
-    with prob(x) and update(expert_x, policy_x) (gail.py's here, DRAIL's in drail_disc.py)."""
+                state: dict, step: int) -> dict:
+    """One round of the paper's Algorithm 2 at env step `step`: student, discriminator (every
+    --disc-update-every steps), trainer, then the freeze test. `state` holds frozen_at (None, or the step from
+    which the trainer no longer learns), reward_only (covariate shift: neither trainer nor discriminator
+    learns), the freeze statistic's running parts and trainer_updates. `disc` is any discriminator with
+    prob(x) and update(expert_x, policy_x) (gail.py's here, DRAIL's in drail_disc.py)."""
     # student: SAC on r_S = the current trainer's action on the sampled (s, a_S)
     batch = mix_expert(rb.sample(args.batch_size), expert, args.student_expert_fraction)
     r_s = student_reward(trainer.actor, trainer_input(*batch[:3], args.trainer_obs), args.termination_remedy)
@@ -366,10 +378,11 @@ def rile_update(student: "SAC", trainer: "SAC", disc: nn.Module, rb: "ReplayBuff
         return metrics
     # discriminator: expert pairs (s, a) against the most recent student pairs; transitions (s, s') with --state-only
     seen = "next_obs" if args.state_only else "actions"  # what D sees beside s
-    idx = torch.randint(0, len(expert["obs"]), (args.disc_batch_size,), device=expert["obs"].device)
-    policy = rb.sample(args.disc_batch_size, recent=args.disc_buffer_size)
-    expert_x = torch.cat([expert["obs"][idx], expert[seen][idx]], -1)
-    metrics |= disc.update(expert_x, torch.cat([policy.obs, getattr(policy, seen)], -1))
+    if step % args.disc_update_every == 0:
+        idx = torch.randint(0, len(expert["obs"]), (args.disc_batch_size,), device=expert["obs"].device)
+        policy = rb.sample(args.disc_batch_size, recent=args.disc_buffer_size)
+        expert_x = torch.cat([expert["obs"][idx], expert[seen][idx]], -1)
+        metrics |= disc.update(expert_x, torch.cat([policy.obs, getattr(policy, seen)], -1))
     if state["frozen_at"] is not None:
         return metrics
     # trainer: SAC on o_T = (s, a_S) or (s, s'), its stored action a_T, r_T from the current discriminator
@@ -388,10 +401,45 @@ def rile_update(student: "SAC", trainer: "SAC", disc: nn.Module, rb: "ReplayBuff
             next_obs_t = torch.cat([batch.next_obs, student.policy(batch.next_obs)[0]], -1)
     metrics |= trainer.update(obs_t, a_t, next_obs_t, r_t, batch.terminations, prefix="losses/trainer_")
     metrics["reward/trainer_reward_mean"] = r_t.mean()
-    loss = metrics["losses/trainer_qf_loss"]
-    state["critic_loss_ema"] = torch.lerp(state["critic_loss_ema"], loss, 0.01) if state["trainer_updates"] else loss
-    state["trainer_updates"] += 1
+    freeze_test(metrics["losses/trainer_qf_loss"], metrics["losses/trainer_qf_target_var"], args, state, step)
     return metrics
+
+
+def freeze_test(critic_loss, target_var, args, state: dict, step: int) -> None:
+    """Freeze the trainer "once its critic network converges" (the paper's appendix; its threshold, not its test).
+    The statistic, a moving average (0.99) over updates, is by default the critics' TD loss relative to the
+    variance of their targets (--trainer-freeze-stat relative; `loss` is the raw TD loss): the share of what the
+    critic is asked to predict that it still gets wrong, whatever the reward's scale. It must stay below the
+    threshold for --trainer-freeze-window steps, and the freeze never comes before --trainer-freeze-after (half the
+    run by default: the paper freezes "midway", so that the student is not confused "in the later stages of training")."""
+    ema = lambda name, x: torch.lerp(state[name], x, 0.01) if state["trainer_updates"] else x
+    state["critic_loss_ema"], state["target_var_ema"] = ema("critic_loss_ema", critic_loss), ema("target_var_ema", target_var)
+    state["trainer_updates"] += 1
+    if not args.trainer_freeze or step % 100:  # reading the statistic synchronises: every 100 steps
+        return
+    statistic = freeze_statistic(state, args.trainer_freeze_stat)
+    if statistic >= args.trainer_freeze_threshold:
+        state["below_since"] = None
+        return
+    state["below_since"] = step if state["below_since"] is None else state["below_since"]
+    after = args.total_timesteps // 2 if args.trainer_freeze_after is None else args.trainer_freeze_after
+    if (step - state["below_since"] >= args.trainer_freeze_window and step >= after
+            and state["trainer_updates"] >= args.trainer_freeze_min_updates):
+        state["frozen_at"] = step
+        print(f"trainer frozen at step {step} ({args.trainer_freeze_stat} critic loss {statistic:.4f})", flush=True)
+
+
+def freeze_statistic(state: dict, stat: str) -> float:
+    """The trainer's critic loss (a moving average): raw, or relative to its targets' variance (two critics)."""
+    loss = state["critic_loss_ema"].item()
+    return loss if stat == "loss" else loss / max(2 * state["target_var_ema"].item(), 1e-8)
+
+
+def rile_state(device) -> dict:
+    """The trainer's bookkeeping, saved in every checkpoint."""
+    inf = torch.tensor(float("inf"), device=device)
+    return {"frozen_at": None, "reward_only": False, "trainer_updates": 0, "critic_loss_ema": inf,
+            "target_var_ema": inf.clone(), "below_since": None}
 # --- end shared: rile ---
 
 
@@ -532,8 +580,9 @@ class SAC:
         return rewards + (1.0 - terminations) * self.gamma * next_q
 
     def critic_loss(self, obs, actions, next_obs, rewards, terminations):
-        q = self.qf(obs, actions)
-        return (q - self.td_target(next_obs, rewards, terminations)).pow(2).mean(1).sum(), q.mean()
+        """Both critics' squared TD errors, the mean Q-value, and the variance of the TD targets (their scale)."""
+        q, target = self.qf(obs, actions), self.td_target(next_obs, rewards, terminations)
+        return (q - target).pow(2).mean(1).sum(), q.mean(), target.var()
 
     def actor_loss(self, obs):
         actions, log_pi = self.policy(obs)
@@ -548,7 +597,7 @@ class SAC:
     def update(self, obs, actions, next_obs, rewards, terminations, prefix: str = "losses/") -> dict:
         """One SAC step: critics, then actor and temperature on the updated critics, then targets.
         Returns metric tensors keyed by their logged names (no .item() here: reading one synchronises)."""
-        qf_loss, q_mean = self.critic_loss(obs, actions, next_obs, rewards, terminations)
+        qf_loss, q_mean, target_var = self.critic_loss(obs, actions, next_obs, rewards, terminations)
         self.q_optimizer.zero_grad(set_to_none=False)
         qf_loss.backward()
         self.q_optimizer.step()
@@ -564,8 +613,8 @@ class SAC:
         self.actor_optimizer.step()
         with torch.no_grad():
             torch._foreach_lerp_(list(self.qf_target.parameters()), list(self.qf.parameters()), self.tau)
-        metrics = dict(qf_loss=qf_loss, qf_values=q_mean, actor_loss=actor_loss, alpha_loss=alpha_loss, entropy=entropy,
-                       alpha=self.log_alpha.exp())
+        metrics = dict(qf_loss=qf_loss, qf_values=q_mean, qf_target_var=target_var, actor_loss=actor_loss,
+                       alpha_loss=alpha_loss, entropy=entropy, alpha=self.log_alpha.exp())
         return {prefix + name: value.detach() for name, value in metrics.items()}
 
     def state_dict(self) -> dict:
@@ -753,6 +802,7 @@ class Run:
 
     def __init__(self, args, checkpoint: Optional[dict], stateful: dict, expert_return: Optional[float], device):
         self.args, self.stateful, self.evals, self.start_step, self.wall_offset = args, stateful, [], 0, 0.0
+        self.extra = {}  # what a script adds to results.json
         finite = expert_return is not None and np.isfinite(expert_return)  # NaN: demonstrations without rewards
         self.expert_return = expert_return if finite else None
         default_name = f"{args.env_id}__{args.exp_name}__{args.seed}__{int(time.time())}"
@@ -857,7 +907,7 @@ class Run:
         results = {"algo": self.args.exp_name, "env_id": self.args.env_id, "seed": self.args.seed, "finished": finished,
                    "evals": self.evals, "final_return": final.get("mean"), "final_normalized_return": final.get("normalized"),
                    "expert_return": self.expert_return, "wall_time_s": self.wall_time(), "sps": self.sps,
-                   "machine": self.machine, "config": asdict(self.args)}
+                   "machine": self.machine, "config": asdict(self.args)} | self.extra
         with open(os.path.join(self.dir, "results.json.tmp"), "w") as f:
             json.dump(results, f, indent=1)
         os.replace(os.path.join(self.dir, "results.json.tmp"), os.path.join(self.dir, "results.json"))
@@ -949,8 +999,7 @@ if __name__ == "__main__":
     disc = DiffusionDiscriminator(len(x_mean), args.disc_hidden_dim, args.diffusion_steps, args.disc_lr, x_mean, x_std,
                                   args.shared_noise, args.num_draws).to(device)
     rb = ReplayBuffer(aug_dim, act_dim, args.buffer_size, device, extra_dim=1)
-    state = {"frozen_at": None, "reward_only": False, "trainer_updates": 0,
-             "critic_loss_ema": torch.tensor(float("inf"), device=device)}
+    state = rile_state(device)
     stateful = {"agent": agent, "trainer": trainer, "disc": disc, "disc_optimizer": disc.optimizer, "replay_buffer": rb,
                 "rile": state}
     if not args.run_name:  # the two variants' runs apart
@@ -984,21 +1033,15 @@ if __name__ == "__main__":
         # ALGO LOGIC: training
         if global_step >= args.learning_starts:
             if rile_mode:
-                metrics = rile_update(agent, trainer, disc, rb, expert, args, state)
+                metrics = rile_update(agent, trainer, disc, rb, expert, args, state, global_step)
             else:
-                metrics = gail_update(agent, disc, rb, expert, args, state_only=args.state_only)
+                metrics = gail_update(agent, disc, rb, expert, args, state_only=args.state_only,
+                                      update_disc=global_step % args.disc_update_every == 0)
             if global_step % 1000 == 0:  # the same names in both variants: the student's SAC metrics as losses/student_*
                 run.log({name if rile_mode or "disc" in name else name.replace("losses/", "losses/student_"): value
                          for name, value in metrics.items()
                          if name not in ("reward/learned_std", "reward/trainer_reward_mean")},
                         global_step)
-            if (rile_mode and global_step % 100 == 0 and args.trainer_freeze and state["frozen_at"] is None  # .item() syncs
-                    and state["trainer_updates"] >= args.trainer_freeze_min_updates
-                    and state["critic_loss_ema"].item() < args.trainer_freeze_threshold):
-                state["frozen_at"] = global_step
-                run.writer.add_text("trainer/frozen_at", str(global_step), global_step)
-                print(f"trainer frozen at step {global_step} (critic loss EMA {state['critic_loss_ema'].item():.4f})",
-                      flush=True)
         trainer_status = f" | trainer {'frozen' if state['frozen_at'] is not None else 'learning'}" if rile_mode else ""
         run.end_step(global_step + 1, agent.actor.act, status=trainer_status)
 

@@ -123,7 +123,11 @@ class Args:
     disc_buffer_size: int = 16_384
     """the discriminator learns from this many most recent agent transitions"""
     disc_gp: float = 1.0
-    """weight of the one-centred gradient penalty"""
+    """weight of the gradient penalty"""
+    disc_gp_center: float = 1.0
+    """the norm the gradient penalty pulls D's input gradient towards: 1 (one-centred, DAC's) or 0 (zero-centred)"""
+    disc_update_every: int = 1
+    """one discriminator update every this many env steps (the paper's "1 update per round")"""
 
     # Imitation arguments
     expert_path: Optional[str] = None
@@ -139,29 +143,29 @@ class Args:
 # ALGO LOGIC: the discriminator, then GAIL's reward and update (blocks rile.py and drail_disc.py share)
 # --- shared: discriminator ---
 class Discriminator(nn.Module):
-    """D(x) = sigmoid(logit(x)), expert = 1, trained with BCE and a one-centred gradient penalty on
-    random interpolates of expert and policy inputs."""
+    """D(x) = sigmoid(logit(x)), expert = 1, trained with BCE and a gradient penalty on random interpolates of
+    expert and policy inputs: one-centred (gp_center 1, DAC's) or zero-centred (gp_center 0)."""
 
-    def __init__(self, in_dim: int, hidden_dim: int, lr: float, gp_weight: float):
+    def __init__(self, in_dim: int, hidden_dim: int, lr: float, gp_weight: float, gp_center: float = 1.0):
         super().__init__()
         self.net = nn.Sequential(
             nn.Linear(in_dim, hidden_dim), nn.Tanh(), nn.Linear(hidden_dim, hidden_dim), nn.Tanh(), nn.Linear(hidden_dim, 1)
         )
-        self.gp_weight = gp_weight
+        self.gp_weight, self.gp_center = gp_weight, gp_center
         self.optimizer = torch.optim.Adam(self.parameters(), lr=lr)
 
     def forward(self, x):
         return self.net(x).squeeze(-1)
 
     def loss(self, expert_x, policy_x):
-        """BCE(D(expert), 1) + BCE(D(policy), 0) + gp_weight * E[(||grad_x logit(x_hat)|| - 1)^2]."""
+        """BCE(D(expert), 1) + BCE(D(policy), 0) + gp_weight * E[(||grad_x logit(x_hat)|| - gp_center)^2]."""
         expert_logits, policy_logits = self(expert_x), self(policy_x)
         bce = F.binary_cross_entropy_with_logits(expert_logits, torch.ones_like(expert_logits))
         bce = bce + F.binary_cross_entropy_with_logits(policy_logits, torch.zeros_like(policy_logits))
         eps = torch.rand(len(expert_x), 1, device=expert_x.device)
         x_hat = (eps * expert_x + (1 - eps) * policy_x).requires_grad_(True)
         grad = torch.autograd.grad(self(x_hat).sum(), x_hat, create_graph=True)[0]
-        gp = (grad.norm(2, dim=1) - 1).pow(2).mean()
+        gp = (grad.norm(2, dim=1) - self.gp_center).pow(2).mean()
         return bce + self.gp_weight * gp, bce, gp, torch.sigmoid(expert_logits).mean(), torch.sigmoid(policy_logits).mean()
 
     def update(self, expert_x, policy_x) -> dict:
@@ -191,15 +195,18 @@ def gail_reward(logits, form: str):
     raise ValueError(f"unknown reward form '{form}'; choose softplus, logit or log-d")
 
 
-def gail_update(agent: "SAC", disc: nn.Module, rb: "ReplayBuffer", expert: dict, args, state_only: bool = False) -> dict:
-    """One SAC update on rewards from the current discriminator, then one discriminator update. D scores
-    pairs (s, a), or with `state_only` transitions (s, s') (GAIfO: gaifo.py, drail_disc.py --state-only)."""
+def gail_update(agent: "SAC", disc: nn.Module, rb: "ReplayBuffer", expert: dict, args, state_only: bool = False,
+                update_disc: bool = True) -> dict:
+    """One SAC update on rewards from the current discriminator, then (if update_disc) one discriminator update.
+    D scores pairs (s, a), or with `state_only` transitions (s, s') (GAIfO: gaifo.py, drail_disc.py --state-only)."""
     seen = "next_obs" if state_only else "actions"  # what D sees beside s
     batch = rb.sample(args.batch_size)  # its env rewards are never used
     with torch.no_grad():
         rewards = gail_reward(disc(torch.cat([batch.obs, getattr(batch, seen)], -1)), args.reward_form)
     metrics = agent.update(batch.obs, batch.actions, batch.next_obs, rewards, batch.terminations, prefix="losses/")
     metrics.update({"reward/learned_mean": rewards.mean(), "reward/learned_std": rewards.std()})
+    if not update_disc:
+        return metrics
     idx = torch.randint(0, len(expert["obs"]), (args.disc_batch_size,), device=expert["obs"].device)
     policy = rb.sample(args.disc_batch_size, recent=args.disc_buffer_size)
     expert_x = torch.cat([expert["obs"][idx], expert[seen][idx]], -1)
@@ -344,8 +351,9 @@ class SAC:
         return rewards + (1.0 - terminations) * self.gamma * next_q
 
     def critic_loss(self, obs, actions, next_obs, rewards, terminations):
-        q = self.qf(obs, actions)
-        return (q - self.td_target(next_obs, rewards, terminations)).pow(2).mean(1).sum(), q.mean()
+        """Both critics' squared TD errors, the mean Q-value, and the variance of the TD targets (their scale)."""
+        q, target = self.qf(obs, actions), self.td_target(next_obs, rewards, terminations)
+        return (q - target).pow(2).mean(1).sum(), q.mean(), target.var()
 
     def actor_loss(self, obs):
         actions, log_pi = self.policy(obs)
@@ -360,7 +368,7 @@ class SAC:
     def update(self, obs, actions, next_obs, rewards, terminations, prefix: str = "losses/") -> dict:
         """One SAC step: critics, then actor and temperature on the updated critics, then targets.
         Returns metric tensors keyed by their logged names (no .item() here: reading one synchronises)."""
-        qf_loss, q_mean = self.critic_loss(obs, actions, next_obs, rewards, terminations)
+        qf_loss, q_mean, target_var = self.critic_loss(obs, actions, next_obs, rewards, terminations)
         self.q_optimizer.zero_grad(set_to_none=False)
         qf_loss.backward()
         self.q_optimizer.step()
@@ -376,8 +384,8 @@ class SAC:
         self.actor_optimizer.step()
         with torch.no_grad():
             torch._foreach_lerp_(list(self.qf_target.parameters()), list(self.qf.parameters()), self.tau)
-        metrics = dict(qf_loss=qf_loss, qf_values=q_mean, actor_loss=actor_loss, alpha_loss=alpha_loss, entropy=entropy,
-                       alpha=self.log_alpha.exp())
+        metrics = dict(qf_loss=qf_loss, qf_values=q_mean, qf_target_var=target_var, actor_loss=actor_loss,
+                       alpha_loss=alpha_loss, entropy=entropy, alpha=self.log_alpha.exp())
         return {prefix + name: value.detach() for name, value in metrics.items()}
 
     def state_dict(self) -> dict:
@@ -565,6 +573,7 @@ class Run:
 
     def __init__(self, args, checkpoint: Optional[dict], stateful: dict, expert_return: Optional[float], device):
         self.args, self.stateful, self.evals, self.start_step, self.wall_offset = args, stateful, [], 0, 0.0
+        self.extra = {}  # what a script adds to results.json
         finite = expert_return is not None and np.isfinite(expert_return)  # NaN: demonstrations without rewards
         self.expert_return = expert_return if finite else None
         default_name = f"{args.env_id}__{args.exp_name}__{args.seed}__{int(time.time())}"
@@ -669,7 +678,7 @@ class Run:
         results = {"algo": self.args.exp_name, "env_id": self.args.env_id, "seed": self.args.seed, "finished": finished,
                    "evals": self.evals, "final_return": final.get("mean"), "final_normalized_return": final.get("normalized"),
                    "expert_return": self.expert_return, "wall_time_s": self.wall_time(), "sps": self.sps,
-                   "machine": self.machine, "config": asdict(self.args)}
+                   "machine": self.machine, "config": asdict(self.args)} | self.extra
         with open(os.path.join(self.dir, "results.json.tmp"), "w") as f:
             json.dump(results, f, indent=1)
         os.replace(os.path.join(self.dir, "results.json.tmp"), os.path.join(self.dir, "results.json"))
@@ -735,7 +744,7 @@ if __name__ == "__main__":
     # ALGO LOGIC: the agent, the discriminator and the replay buffer
     aug_dim = obs_dim + absorbing  # with absorbing states, every stored observation has the indicator column
     agent = SAC(aug_dim, act_dim, low, high, args, device, absorbing=absorbing)
-    disc = Discriminator(aug_dim + act_dim, args.disc_hidden_dim, args.disc_lr, args.disc_gp).to(device)
+    disc = Discriminator(aug_dim + act_dim, args.disc_hidden_dim, args.disc_lr, args.disc_gp, args.disc_gp_center).to(device)
     rb = ReplayBuffer(aug_dim, act_dim, args.buffer_size, device)
     stateful = {"agent": agent, "disc": disc, "disc_optimizer": disc.optimizer, "replay_buffer": rb}
     run = Run(args, checkpoint, stateful, float(demos["episode_returns"].mean()), device)
@@ -757,7 +766,7 @@ if __name__ == "__main__":
 
         # ALGO LOGIC: training
         if global_step >= args.learning_starts:
-            metrics = gail_update(agent, disc, rb, expert, args)
+            metrics = gail_update(agent, disc, rb, expert, args, update_disc=global_step % args.disc_update_every == 0)
             if global_step % 1000 == 0:
                 run.log(metrics, global_step)
         run.end_step(global_step + 1, agent.actor.act)

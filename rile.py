@@ -23,10 +23,16 @@ Implementation choices and deviations
 4. Discriminator: 64-64 tanh MLP on concat(s, a), logit "expert is high", BCE (expert = 1) on balanced
    batches, plus a one-centred gradient penalty on random interpolates of expert and student pairs
    (weight 1, `--disc-gp`; the paper gives the weight, not the form, which is DAC's).
-5. Freezing: the trainer stops updating once an exponential moving average (0.99) of its critic loss
-   falls below `--trainer-freeze-threshold`, and never before `--trainer-freeze-min-updates`
-   updates. The paper names the threshold, not the test. `--no-trainer-freeze` turns it off. The
-   discriminator keeps training (its outputs stay logged); only the trainer stops.
+5. Freezing (the paper: freeze the trainer "once its critic network converges", threshold 0.1, so that the
+   student is not confused "in the later stages of training"; it names no test). Convergence is read from a
+   moving average (0.99) of the trainer's critic loss relative to the variance of its TD targets: the share of
+   what the critic must predict that it still gets wrong. A raw loss under 0.1 is met by any critic whose
+   targets are nearly flat (a trainer that sees only pairs D already rejects): measured, it fired at 15k of
+   Hopper-v4's 200k steps on a reward that never moved again. The test must hold for
+   `--trainer-freeze-window` 10k steps and never passes before `--trainer-freeze-after` (half the run), so the
+   freeze comes midway or later, as in the paper's figures. The earlier rule: `--trainer-freeze-stat loss
+   --trainer-freeze-window 0 --trainer-freeze-after 0`; `--no-trainer-freeze` turns it off. The discriminator
+   keeps training after the freeze (its outputs stay logged); only the trainer stops.
 6. Termination bias (the paper is silent): r_S = a_T can be negative, which pays the student to end
    episodes early on Hopper, Walker2d and Humanoid. `--termination-remedy none` is the paper-literal
    reward; `survival` rewards the student with (1 + a_T) / 2 in [0, 1] instead, the same ordering with
@@ -166,9 +172,15 @@ class Args:
     trainer_tau: float = 0.005
     """the trainer's target smoothing coefficient"""
     trainer_freeze: bool = True
-    """freeze the trainer once its critic has converged"""
+    """freeze the trainer once its critic has converged (header, choice 5)"""
+    trainer_freeze_stat: Literal["relative", "loss"] = "relative"
+    """relative: the trainer's critic loss over the variance of its targets; loss: the raw critic loss (the paper's words)"""
     trainer_freeze_threshold: float = 0.1
-    """freeze when the moving average (0.99) of the trainer's critic loss falls below this"""
+    """freeze when the moving average (0.99) of --trainer-freeze-stat stays below this"""
+    trainer_freeze_window: int = 10_000
+    """env steps the statistic must stay below the threshold (0: the first crossing freezes)"""
+    trainer_freeze_after: Optional[int] = None
+    """never freeze before this env step (default: half of --total-timesteps)"""
     trainer_freeze_min_updates: int = 10_000
     """never freeze before this many trainer updates"""
     trainer_obs: Literal["state-action", "transition"] = "state-action"
@@ -184,7 +196,11 @@ class Args:
     disc_buffer_size: int = 16_384
     """the discriminator learns from this many most recent agent transitions"""
     disc_gp: float = 1.0
-    """weight of the one-centred gradient penalty"""
+    """weight of the gradient penalty"""
+    disc_gp_center: float = 1.0
+    """the norm the gradient penalty pulls D's input gradient towards: 1 (one-centred, DAC's) or 0 (zero-centred)"""
+    disc_update_every: int = 1
+    """one discriminator update every this many env steps (the paper's "1 update per round")"""
 
     # Imitation arguments
     expert_path: Optional[str] = None
@@ -213,29 +229,29 @@ class Args:
 # ALGO LOGIC: the discriminator (gail.py's), then RILe's rewards and update (a block drail_disc.py shares)
 # --- shared: discriminator ---
 class Discriminator(nn.Module):
-    """D(x) = sigmoid(logit(x)), expert = 1, trained with BCE and a one-centred gradient penalty on
-    random interpolates of expert and policy inputs."""
+    """D(x) = sigmoid(logit(x)), expert = 1, trained with BCE and a gradient penalty on random interpolates of
+    expert and policy inputs: one-centred (gp_center 1, DAC's) or zero-centred (gp_center 0)."""
 
-    def __init__(self, in_dim: int, hidden_dim: int, lr: float, gp_weight: float):
+    def __init__(self, in_dim: int, hidden_dim: int, lr: float, gp_weight: float, gp_center: float = 1.0):
         super().__init__()
         self.net = nn.Sequential(
             nn.Linear(in_dim, hidden_dim), nn.Tanh(), nn.Linear(hidden_dim, hidden_dim), nn.Tanh(), nn.Linear(hidden_dim, 1)
         )
-        self.gp_weight = gp_weight
+        self.gp_weight, self.gp_center = gp_weight, gp_center
         self.optimizer = torch.optim.Adam(self.parameters(), lr=lr)
 
     def forward(self, x):
         return self.net(x).squeeze(-1)
 
     def loss(self, expert_x, policy_x):
-        """BCE(D(expert), 1) + BCE(D(policy), 0) + gp_weight * E[(||grad_x logit(x_hat)|| - 1)^2]."""
+        """BCE(D(expert), 1) + BCE(D(policy), 0) + gp_weight * E[(||grad_x logit(x_hat)|| - gp_center)^2]."""
         expert_logits, policy_logits = self(expert_x), self(policy_x)
         bce = F.binary_cross_entropy_with_logits(expert_logits, torch.ones_like(expert_logits))
         bce = bce + F.binary_cross_entropy_with_logits(policy_logits, torch.zeros_like(policy_logits))
         eps = torch.rand(len(expert_x), 1, device=expert_x.device)
         x_hat = (eps * expert_x + (1 - eps) * policy_x).requires_grad_(True)
         grad = torch.autograd.grad(self(x_hat).sum(), x_hat, create_graph=True)[0]
-        gp = (grad.norm(2, dim=1) - 1).pow(2).mean()
+        gp = (grad.norm(2, dim=1) - self.gp_center).pow(2).mean()
         return bce + self.gp_weight * gp, bce, gp, torch.sigmoid(expert_logits).mean(), torch.sigmoid(policy_logits).mean()
 
     def update(self, expert_x, policy_x) -> dict:
@@ -304,11 +320,12 @@ def mix_expert(batch: "Batch", expert: dict, fraction: float) -> "Batch":
 
 
 def rile_update(student: "SAC", trainer: "SAC", disc: nn.Module, rb: "ReplayBuffer", expert: dict, args,
-                state: dict) -> dict:
-    """One round of the paper's Algorithm 2: student, discriminator, trainer. `state` holds frozen_at
-    (None, or the step from which the trainer no longer learns), reward_only (covariate shift: neither
-    trainer nor discriminator learns), critic_loss_ema and trainer_updates. `disc` is any discriminator
-    with prob(x) and update(expert_x, policy_x) (gail.py's here, DRAIL's in drail_disc.py)."""
+                state: dict, step: int) -> dict:
+    """One round of the paper's Algorithm 2 at env step `step`: student, discriminator (every
+    --disc-update-every steps), trainer, then the freeze test. `state` holds frozen_at (None, or the step from
+    which the trainer no longer learns), reward_only (covariate shift: neither trainer nor discriminator
+    learns), the freeze statistic's running parts and trainer_updates. `disc` is any discriminator with
+    prob(x) and update(expert_x, policy_x) (gail.py's here, DRAIL's in drail_disc.py)."""
     # student: SAC on r_S = the current trainer's action on the sampled (s, a_S)
     batch = mix_expert(rb.sample(args.batch_size), expert, args.student_expert_fraction)
     r_s = student_reward(trainer.actor, trainer_input(*batch[:3], args.trainer_obs), args.termination_remedy)
@@ -318,10 +335,11 @@ def rile_update(student: "SAC", trainer: "SAC", disc: nn.Module, rb: "ReplayBuff
         return metrics
     # discriminator: expert pairs (s, a) against the most recent student pairs; transitions (s, s') with --state-only
     seen = "next_obs" if args.state_only else "actions"  # what D sees beside s
-    idx = torch.randint(0, len(expert["obs"]), (args.disc_batch_size,), device=expert["obs"].device)
-    policy = rb.sample(args.disc_batch_size, recent=args.disc_buffer_size)
-    expert_x = torch.cat([expert["obs"][idx], expert[seen][idx]], -1)
-    metrics |= disc.update(expert_x, torch.cat([policy.obs, getattr(policy, seen)], -1))
+    if step % args.disc_update_every == 0:
+        idx = torch.randint(0, len(expert["obs"]), (args.disc_batch_size,), device=expert["obs"].device)
+        policy = rb.sample(args.disc_batch_size, recent=args.disc_buffer_size)
+        expert_x = torch.cat([expert["obs"][idx], expert[seen][idx]], -1)
+        metrics |= disc.update(expert_x, torch.cat([policy.obs, getattr(policy, seen)], -1))
     if state["frozen_at"] is not None:
         return metrics
     # trainer: SAC on o_T = (s, a_S) or (s, s'), its stored action a_T, r_T from the current discriminator
@@ -340,10 +358,45 @@ def rile_update(student: "SAC", trainer: "SAC", disc: nn.Module, rb: "ReplayBuff
             next_obs_t = torch.cat([batch.next_obs, student.policy(batch.next_obs)[0]], -1)
     metrics |= trainer.update(obs_t, a_t, next_obs_t, r_t, batch.terminations, prefix="losses/trainer_")
     metrics["reward/trainer_reward_mean"] = r_t.mean()
-    loss = metrics["losses/trainer_qf_loss"]
-    state["critic_loss_ema"] = torch.lerp(state["critic_loss_ema"], loss, 0.01) if state["trainer_updates"] else loss
-    state["trainer_updates"] += 1
+    freeze_test(metrics["losses/trainer_qf_loss"], metrics["losses/trainer_qf_target_var"], args, state, step)
     return metrics
+
+
+def freeze_test(critic_loss, target_var, args, state: dict, step: int) -> None:
+    """Freeze the trainer "once its critic network converges" (the paper's appendix; its threshold, not its test).
+    The statistic, a moving average (0.99) over updates, is by default the critics' TD loss relative to the
+    variance of their targets (--trainer-freeze-stat relative; `loss` is the raw TD loss): the share of what the
+    critic is asked to predict that it still gets wrong, whatever the reward's scale. It must stay below the
+    threshold for --trainer-freeze-window steps, and the freeze never comes before --trainer-freeze-after (half the
+    run by default: the paper freezes "midway", so that the student is not confused "in the later stages of training")."""
+    ema = lambda name, x: torch.lerp(state[name], x, 0.01) if state["trainer_updates"] else x
+    state["critic_loss_ema"], state["target_var_ema"] = ema("critic_loss_ema", critic_loss), ema("target_var_ema", target_var)
+    state["trainer_updates"] += 1
+    if not args.trainer_freeze or step % 100:  # reading the statistic synchronises: every 100 steps
+        return
+    statistic = freeze_statistic(state, args.trainer_freeze_stat)
+    if statistic >= args.trainer_freeze_threshold:
+        state["below_since"] = None
+        return
+    state["below_since"] = step if state["below_since"] is None else state["below_since"]
+    after = args.total_timesteps // 2 if args.trainer_freeze_after is None else args.trainer_freeze_after
+    if (step - state["below_since"] >= args.trainer_freeze_window and step >= after
+            and state["trainer_updates"] >= args.trainer_freeze_min_updates):
+        state["frozen_at"] = step
+        print(f"trainer frozen at step {step} ({args.trainer_freeze_stat} critic loss {statistic:.4f})", flush=True)
+
+
+def freeze_statistic(state: dict, stat: str) -> float:
+    """The trainer's critic loss (a moving average): raw, or relative to its targets' variance (two critics)."""
+    loss = state["critic_loss_ema"].item()
+    return loss if stat == "loss" else loss / max(2 * state["target_var_ema"].item(), 1e-8)
+
+
+def rile_state(device) -> dict:
+    """The trainer's bookkeeping, saved in every checkpoint."""
+    inf = torch.tensor(float("inf"), device=device)
+    return {"frozen_at": None, "reward_only": False, "trainer_updates": 0, "critic_loss_ema": inf,
+            "target_var_ema": inf.clone(), "below_since": None}
 # --- end shared: rile ---
 
 
@@ -547,8 +600,9 @@ class SAC:
         return rewards + (1.0 - terminations) * self.gamma * next_q
 
     def critic_loss(self, obs, actions, next_obs, rewards, terminations):
-        q = self.qf(obs, actions)
-        return (q - self.td_target(next_obs, rewards, terminations)).pow(2).mean(1).sum(), q.mean()
+        """Both critics' squared TD errors, the mean Q-value, and the variance of the TD targets (their scale)."""
+        q, target = self.qf(obs, actions), self.td_target(next_obs, rewards, terminations)
+        return (q - target).pow(2).mean(1).sum(), q.mean(), target.var()
 
     def actor_loss(self, obs):
         actions, log_pi = self.policy(obs)
@@ -563,7 +617,7 @@ class SAC:
     def update(self, obs, actions, next_obs, rewards, terminations, prefix: str = "losses/") -> dict:
         """One SAC step: critics, then actor and temperature on the updated critics, then targets.
         Returns metric tensors keyed by their logged names (no .item() here: reading one synchronises)."""
-        qf_loss, q_mean = self.critic_loss(obs, actions, next_obs, rewards, terminations)
+        qf_loss, q_mean, target_var = self.critic_loss(obs, actions, next_obs, rewards, terminations)
         self.q_optimizer.zero_grad(set_to_none=False)
         qf_loss.backward()
         self.q_optimizer.step()
@@ -579,8 +633,8 @@ class SAC:
         self.actor_optimizer.step()
         with torch.no_grad():
             torch._foreach_lerp_(list(self.qf_target.parameters()), list(self.qf.parameters()), self.tau)
-        metrics = dict(qf_loss=qf_loss, qf_values=q_mean, actor_loss=actor_loss, alpha_loss=alpha_loss, entropy=entropy,
-                       alpha=self.log_alpha.exp())
+        metrics = dict(qf_loss=qf_loss, qf_values=q_mean, qf_target_var=target_var, actor_loss=actor_loss,
+                       alpha_loss=alpha_loss, entropy=entropy, alpha=self.log_alpha.exp())
         return {prefix + name: value.detach() for name, value in metrics.items()}
 
     def state_dict(self) -> dict:
@@ -768,6 +822,7 @@ class Run:
 
     def __init__(self, args, checkpoint: Optional[dict], stateful: dict, expert_return: Optional[float], device):
         self.args, self.stateful, self.evals, self.start_step, self.wall_offset = args, stateful, [], 0, 0.0
+        self.extra = {}  # what a script adds to results.json
         finite = expert_return is not None and np.isfinite(expert_return)  # NaN: demonstrations without rewards
         self.expert_return = expert_return if finite else None
         default_name = f"{args.env_id}__{args.exp_name}__{args.seed}__{int(time.time())}"
@@ -872,7 +927,7 @@ class Run:
         results = {"algo": self.args.exp_name, "env_id": self.args.env_id, "seed": self.args.seed, "finished": finished,
                    "evals": self.evals, "final_return": final.get("mean"), "final_normalized_return": final.get("normalized"),
                    "expert_return": self.expert_return, "wall_time_s": self.wall_time(), "sps": self.sps,
-                   "machine": self.machine, "config": asdict(self.args)}
+                   "machine": self.machine, "config": asdict(self.args)} | self.extra
         with open(os.path.join(self.dir, "results.json.tmp"), "w") as f:
             json.dump(results, f, indent=1)
         os.replace(os.path.join(self.dir, "results.json.tmp"), os.path.join(self.dir, "results.json"))
@@ -952,10 +1007,9 @@ if __name__ == "__main__":
     transition = args.trainer_obs == "transition"
     trainer = SAC(aug_dim + (aug_dim if transition else act_dim), 1, np.array([-1.0]), np.array([1.0]), trainer_args, device)
     disc = Discriminator(aug_dim + (aug_dim if args.state_only else act_dim), args.disc_hidden_dim, args.disc_lr,
-                         args.disc_gp).to(device)
+                         args.disc_gp, args.disc_gp_center).to(device)
     rb = ReplayBuffer(aug_dim, act_dim, args.buffer_size, device, extra_dim=1)
-    state = {"frozen_at": None, "reward_only": bool(args.reward_from), "trainer_updates": 0,
-             "critic_loss_ema": torch.tensor(float("inf"), device=device)}
+    state = rile_state(device) | {"reward_only": bool(args.reward_from)}
     if args.reward_from:  # covariate shift: a frozen learned reward, only the student learns
         load_reward(args.reward_from, trainer, disc, args, obs_dim, act_dim)
         state["frozen_at"] = 0
@@ -963,21 +1017,42 @@ if __name__ == "__main__":
     stateful = {"agent": agent, "trainer": trainer, "disc": disc, "disc_optimizer": disc.optimizer, "replay_buffer": rb,
                 "rile": state, "dynamics": dynamics}
     run = Run(args, checkpoint, stateful, float(demos["episode_returns"].mean()), device)
+    run.extra = {"trainer_frozen_at": state["frozen_at"], "reward_measures": dynamics.history}
     s_abs, aug = absorbing_state(obs_dim), lambda s: np.append(s, 0.0) if absorbing else s  # indicator 0 for env states
 
     def trainer_sees(s, a, s_next):  # o_T of one env step (s and s_next with the indicator where used), as trainer_input
         return np.concatenate([s, s_next if transition else a])
 
-    def log_dynamics(step):
+    def log_dynamics(step):  # the paper's measures of the learned reward, into TensorBoard, results.json, dynamics.json
         n = min(args.dynamics_freq, rb.size)
         recent = rb.batch((rb.pos - 1 - torch.arange(n, device=device)) % rb.capacity)
-        reward_of = lambda obs_t: student_reward(trainer.actor, obs_t, args.termination_remedy).cpu().numpy()
+        reward_of = lambda obs_t: student_reward(trainer.actor, obs_t, args.termination_remedy)
         learned = reward_of(trainer_input(*recent[:3], args.trainer_obs))
         on_expert = None  # FS-RFDC needs the trainer's observation of expert pairs: none without expert actions
         if "actions" in expert or transition:
             on_expert = reward_of(trainer_input(expert["obs"], expert.get("actions"), expert["next_obs"], args.trainer_obs))
-        out = dynamics.step(step, learned, recent.rewards.cpu().numpy(), on_expert)
-        run.log({f"dynamics/{key}": out[key] for key in ("rfdc", "fs_rfdc", "cpr") if out[key] is not None}, step)
+        out = dynamics.step(step, learned.cpu().numpy(), recent.rewards.cpu().numpy(),
+                            None if on_expert is None else on_expert.cpu().numpy())
+        seen = "next_obs" if args.state_only else "actions"
+        live = lambda x, obs: x[obs[:, -1] == 0] if absorbing else x  # pairs of env states, not the absorbing loop
+        mean = lambda x: float(x.mean()) if x is not None and len(x) else None
+        d_of = lambda data: disc.prob(torch.cat([data["obs"], data[seen]], -1))
+        out |= {"r_s_demos": mean(None if on_expert is None else live(on_expert, expert["obs"])),
+                "r_s_student": mean(live(learned, recent.obs)),
+                "d_demos": mean(live(d_of(expert), expert["obs"])),
+                "d_student": mean(live(d_of(recent._asdict()), recent.obs)),
+                "r_s_absorbing": None,
+                "critic_loss": state["critic_loss_ema"].item() if state["trainer_updates"] else None,
+                "critic_loss_relative": freeze_statistic(state, "relative") if state["trainer_updates"] else None,
+                "trainer_frozen_at": state["frozen_at"]}
+        if absorbing:  # the reward of the absorbing self-loop, o_T = (s_abs, 0) or (s_abs, s_abs)
+            s_abs_t = torch.as_tensor(s_abs, device=device)[None]
+            out["r_s_absorbing"] = mean(reward_of(trainer_input(s_abs_t, torch.zeros(1, act_dim, device=device), s_abs_t,
+                                                                args.trainer_obs)))
+        if out["r_s_demos"] is not None:
+            out["r_s_spread"] = out["r_s_demos"] - out["r_s_student"]
+        run.log({f"dynamics/{key}": value for key, value in out.items() if key != "step" and value is not None}, step)
+        run.extra["trainer_frozen_at"], run.extra["reward_measures"] = state["frozen_at"], dynamics.history
         with open(os.path.join(run.dir, "dynamics.json"), "w") as f:
             json.dump(dynamics.history, f, indent=1)
 
@@ -1004,23 +1079,17 @@ if __name__ == "__main__":
 
         # ALGO LOGIC: training
         if global_step >= args.learning_starts:
-            metrics = rile_update(agent, trainer, disc, rb, expert, args, state)
+            metrics = rile_update(agent, trainer, disc, rb, expert, args, state, global_step)
             if global_step % 1000 == 0:
                 frozen = float(state["frozen_at"] is not None)
                 run.log(metrics | {"trainer/critic_loss_ema": state["critic_loss_ema"], "trainer/frozen": frozen}, global_step)
-            if (global_step % 100 == 0 and args.trainer_freeze and state["frozen_at"] is None  # .item() syncs: not every step
-                    and state["trainer_updates"] >= args.trainer_freeze_min_updates
-                    and state["critic_loss_ema"].item() < args.trainer_freeze_threshold):
-                state["frozen_at"] = global_step
-                run.writer.add_text("trainer/frozen_at", str(global_step), global_step)
-                print(f"trainer frozen at step {global_step} (critic loss EMA {state['critic_loss_ema'].item():.4f})",
-                      flush=True)
 
         step = global_step + 1
         if args.dynamics_freq and step % args.dynamics_freq == 0 and step > args.learning_starts:
             log_dynamics(step)
         run.end_step(step, agent.actor.act, status=f" | trainer {'frozen' if state['frozen_at'] is not None else 'learning'}")
 
+    run.extra["trainer_frozen_at"] = state["frozen_at"]
     run.finish(agent.actor.act, {"actor.pt": actor_file(agent.actor, args.env_id, training_steps=args.total_timesteps),
                                  "reward.pt": reward_file(trainer, disc, args, obs_dim, act_dim)},
                status=f", trainer frozen at step {state['frozen_at']}" if state["frozen_at"] else "")

@@ -87,11 +87,11 @@ def test_drail_rile_gives_the_trainer_rile_py_reward(monkeypatch):
     for i in range(10):
         rb.add(np.full(2, i), np.zeros(1), np.full(2, i + 1), 0.0, False, extra=[0.5])
     seen = {}
-    monkeypatch.setattr(trainer, "update", lambda *b, prefix: seen.update(b=b) or {prefix + "qf_loss": torch.tensor(0.0)})
+    losses = {"qf_loss": torch.tensor(0.0), "qf_target_var": torch.tensor(1.0)}
+    monkeypatch.setattr(trainer, "update", lambda *b, prefix: seen.update(b=b) or {prefix + k: v for k, v in losses.items()})
     expert = {"obs": torch.zeros(5, 2), "actions": torch.zeros(5, 1), "next_obs": torch.zeros(5, 2),
               "terminations": torch.zeros(5)}
-    state = {"frozen_at": None, "reward_only": False, "trainer_updates": 0, "critic_loss_ema": torch.tensor(0.0)}
-    drail_disc.rile_update(student, trainer, d, rb, expert, args, state)
+    drail_disc.rile_update(student, trainer, d, rb, expert, args, drail_disc.rile_state("cpu"), 1)
     r_t = seen["b"][3]
     assert torch.allclose(r_t, rile.trainer_reward("exp-difference", torch.full((4,), 0.8), torch.full((4,), 0.5)))
 
@@ -102,7 +102,8 @@ def test_end_to_end(run, tmp_path, variant):
               "--learning-starts", "200", "--eval-freq", "200", "--eval-episodes", "2", "--hidden-dim", "32",
               "--trainer-hidden-dim", "32", "--batch-size", "32", "--trainer-batch-size", "32", "--disc-hidden-dim", "64",
               "--disc-batch-size", "16", "--num-expert-trajs", "2", "--trainer-freeze-min-updates", "100",
-              "--trainer-freeze-threshold", "1e9", "--expert-path", str(ROOT / "experts/InvertedPendulum-v4.npz"),
+              "--trainer-freeze-threshold", "1e9", "--trainer-freeze-window", "0", "--trainer-freeze-after", "0",
+              "--expert-path", str(ROOT / "experts/InvertedPendulum-v4.npz"),
               "--run-name", "d", *(["--termination-remedy", "none"] if variant == "gail" else [])).stdout
     assert f"DRAIL-{'RILe' if variant == 'rile' else 'GAIL'}" in out
     assert ("trainer frozen at step 300" in out) == (variant == "rile")

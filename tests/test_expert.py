@@ -98,9 +98,10 @@ def test_critic_loss_is_the_sum_of_both_critics_mse(monkeypatch):
     agent = make_agent()
     constant_critic(agent.qf, [2.0, -1.0])
     monkeypatch.setattr(agent, "td_target", lambda *a: torch.tensor([1.0, 3.0]))
-    loss, q_mean = agent.critic_loss(torch.zeros(2, 3), torch.zeros(2, 2), torch.zeros(2, 3), None, None)
+    loss, q_mean, target_var = agent.critic_loss(torch.zeros(2, 3), torch.zeros(2, 2), torch.zeros(2, 3), None, None)
     want = ((2 - 1) ** 2 + (2 - 3) ** 2) / 2 + ((-1 - 1) ** 2 + (-1 - 3) ** 2) / 2  # = 1 + 10
     assert loss.item() == pytest.approx(want) and q_mean.item() == pytest.approx(0.5)
+    assert target_var.item() == pytest.approx(2.0)  # unbiased variance of the targets [1, 3]
 
 
 def test_actor_and_temperature_losses(monkeypatch):

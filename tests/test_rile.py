@@ -32,7 +32,7 @@ def learners(args):
         rb.add(np.full(OBS, i), np.full(ACT, 0.01 * i), np.full(OBS, i + 0.5), 1.0, i % 7 == 6, extra=[0.02 * i - 0.2])
     expert = {"obs": torch.full((10, OBS), 100.0) + torch.arange(10.0)[:, None], "actions": torch.full((10, ACT), 0.5),
               "next_obs": torch.full((10, OBS), 200.0), "terminations": torch.zeros(10)}
-    state = {"frozen_at": None, "reward_only": False, "trainer_updates": 0, "critic_loss_ema": torch.tensor(float("inf"))}
+    state = rile.rile_state("cpu")
     return student, trainer, disc, rb, expert, state
 
 
@@ -40,7 +40,7 @@ def recorder(seen: dict, name: str):
     """A stand-in for SAC.update that records the batch it is given and returns a critic loss of 0."""
     def update(*batch, prefix):
         seen.setdefault(name, batch)
-        return {prefix + "qf_loss": torch.tensor(0.0)}
+        return {prefix + "qf_loss": torch.tensor(0.0), prefix + "qf_target_var": torch.tensor(1.0)}
     return update
 
 
@@ -92,8 +92,8 @@ def test_update_relabels_the_student_batch_with_the_current_trainer(monkeypatch)
         return {}
 
     monkeypatch.setattr(student, "update", capture)
-    rile.rile_update(student, trainer, disc, rb, expert, args, state)
-    rile.rile_update(student, trainer, disc, rb, expert, args, state)  # the trainer changed in between
+    rile.rile_update(student, trainer, disc, rb, expert, args, state, 1)
+    rile.rile_update(student, trainer, disc, rb, expert, args, state, 1)  # the trainer changed in between
     for rewards, expected in seen:
         assert torch.allclose(rewards, expected)
     assert not torch.allclose(seen[0][1], seen[1][1])
@@ -105,7 +105,7 @@ def test_trainer_transition_layout(monkeypatch):
     seen = {}
     monkeypatch.setattr(trainer, "update", recorder(seen, "trainer"))
     torch.manual_seed(1)
-    rile.rile_update(student, trainer, disc, rb, expert, args, state)
+    rile.rile_update(student, trainer, disc, rb, expert, args, state, 1)
     obs_t, a_t, next_obs_t, r_t, terminated = seen["trainer"]
     rows = obs_t[:, 0].long()
     assert set(rows.tolist()) <= set(range(14, 20))  # the trainer's window: the 6 most recent rows
@@ -133,20 +133,65 @@ def changed(before, module):
 def test_freezing_stops_trainer_updates_and_only_those():
     args = tiny_args()
     student, trainer, disc, rb, expert, state = learners(args)
-    rile.rile_update(student, trainer, disc, rb, expert, args, state)
+    rile.rile_update(student, trainer, disc, rb, expert, args, state, 1)
     assert state["trainer_updates"] == 1
     state["frozen_at"] = 1
     before = {name: params(m) for name, m in (("student", student.actor), ("student_qf", student.qf),
                                               ("trainer", trainer.actor), ("trainer_qf", trainer.qf), ("disc", disc))}
-    out = rile.rile_update(student, trainer, disc, rb, expert, args, state)
+    out = rile.rile_update(student, trainer, disc, rb, expert, args, state, 1)
     assert not changed(before["trainer"], trainer.actor) and not changed(before["trainer_qf"], trainer.qf)
     assert state["trainer_updates"] == 1 and not any(key.startswith("losses/trainer_") for key in out)
     assert changed(before["student"], student.actor) and changed(before["student_qf"], student.qf)
     assert changed(before["disc"], disc)
     state["reward_only"] = True  # covariate shift: only the student learns
     before_disc = params(disc)
-    rile.rile_update(student, trainer, disc, rb, expert, args, state)
+    rile.rile_update(student, trainer, disc, rb, expert, args, state, 1)
     assert not changed(before_disc, disc)
+
+
+def freeze_step(critic_loss: float, target_var: float, total: int = 1000, **kw):
+    """The step at which freeze_test freezes a trainer whose critic loss and target variance stay constant."""
+    args = tiny_args(total_timesteps=total, **({"trainer_freeze_min_updates": 0, "trainer_freeze_window": 200} | kw))
+    state = rile.rile_state("cpu")
+    for step in range(1, total + 1):
+        rile.freeze_test(torch.tensor(critic_loss), torch.tensor(target_var), args, state, step)
+        if state["frozen_at"] is not None:
+            return state["frozen_at"]
+
+
+def test_freeze_waits_for_half_the_run_and_a_held_window():
+    # relative statistic 0.01 / (2 x 1) = 0.005 < 0.1 from the first check at step 100
+    assert freeze_step(0.01, 1.0) == 500  # never before half of the 1000 steps (--trainer-freeze-after)
+    assert freeze_step(0.01, 1.0, trainer_freeze_after=0, trainer_freeze_window=300) == 400  # below since 100
+    assert freeze_step(0.01, 1.0, trainer_freeze_min_updates=700) == 700
+
+
+def test_a_flat_target_does_not_pass_for_convergence():
+    # a critic loss of 0.01 on targets that barely vary: under the raw threshold, not under the relative one
+    assert freeze_step(0.01, 0.001) is None
+    assert freeze_step(0.01, 0.001, trainer_freeze_stat="loss") == 500
+    # the earlier rule: the raw loss, the first crossing after --trainer-freeze-min-updates, at any point of the run
+    assert freeze_step(0.01, 0.001, trainer_freeze_stat="loss", trainer_freeze_window=0, trainer_freeze_after=0,
+                       trainer_freeze_min_updates=150) == 200
+
+
+def test_freeze_statistic_is_a_moving_average_of_both_parts():
+    state, args = rile.rile_state("cpu"), tiny_args(total_timesteps=10)
+    rile.freeze_test(torch.tensor(4.0), torch.tensor(1.0), args, state, 1)  # the first update sets both averages
+    rile.freeze_test(torch.tensor(5.0), torch.tensor(2.0), args, state, 2)
+    assert state["critic_loss_ema"].item() == pytest.approx(4.01) and state["target_var_ema"].item() == pytest.approx(1.01)
+    assert rile.freeze_statistic(state, "relative") == pytest.approx(4.01 / 2.02)
+    assert rile.freeze_statistic(state, "loss") == pytest.approx(4.01) and state["trainer_updates"] == 2
+
+
+def test_discriminator_updates_every_n_steps():
+    args = tiny_args(disc_update_every=2)
+    student, trainer, disc, rb, expert, state = learners(args)
+    before = params(disc)
+    out = rile.rile_update(student, trainer, disc, rb, expert, args, state, 1)
+    assert not changed(before, disc) and "disc/policy_prob" not in out
+    out = rile.rile_update(student, trainer, disc, rb, expert, args, state, 2)
+    assert changed(before, disc) and "disc/policy_prob" in out
 
 
 @pytest.mark.parametrize("fraction", [0.0, 0.25, 0.5, 1.0])
@@ -156,7 +201,7 @@ def test_expert_fractions_put_that_share_of_expert_pairs_in_the_batches(monkeypa
     seen = {}
     monkeypatch.setattr(student, "update", recorder(seen, "student"))
     monkeypatch.setattr(trainer, "update", recorder(seen, "trainer"))
-    rile.rile_update(student, trainer, disc, rb, expert, args, state)
+    rile.rile_update(student, trainer, disc, rb, expert, args, state, 1)
     is_expert = seen["student"][0][:, 0] >= 100
     assert is_expert.sum().item() == round(fraction * args.batch_size) and is_expert[: int(is_expert.sum())].all()
     trainer_obs = seen["trainer"][0]
@@ -216,6 +261,16 @@ def test_discriminator_loss_and_gradient_penalty_by_hand():
     assert policy_prob.item() == pytest.approx(1 / (1 + np.exp(-4.0)))
 
 
+def test_zero_centred_gradient_penalty_by_hand():
+    disc = rile.Discriminator(2, 8, lr=1e-3, gp_weight=10.0, gp_center=0.0)
+    disc.net = nn.Linear(2, 1)
+    with torch.no_grad():
+        disc.net.weight.copy_(torch.tensor([[3.0, 4.0]]))
+        disc.net.bias.zero_()
+    loss, bce, gp, _, _ = disc.loss(torch.tensor([[1.0, 0.0]]), torch.tensor([[0.0, 1.0]]))
+    assert gp.item() == pytest.approx(25.0) and loss.item() == pytest.approx(bce.item() + 250.0, rel=1e-6)  # |(3, 4)|^2
+
+
 def test_discriminator_learns_to_separate():
     torch.manual_seed(0)
     disc = rile.Discriminator(2, 16, lr=1e-2, gp_weight=1.0)
@@ -253,7 +308,8 @@ TINY = ["--env-id", "InvertedPendulum-v4", "--learning-starts", "200", "--eval-f
 
 def test_end_to_end_every_update_path_then_covariate_shift(run, tmp_path):
     out = run("rile.py", *TINY, "--total-timesteps", "600", "--run-name", "r", "--trainer-freeze-min-updates", "200",
-              "--trainer-freeze-threshold", "1e9", "--student-expert-fraction", "0.25", "--trainer-expert-fraction", "0.25",
+              "--trainer-freeze-threshold", "1e9", "--trainer-freeze-window", "0", "--trainer-freeze-after", "0",
+              "--trainer-freeze-stat", "loss", "--student-expert-fraction", "0.25", "--trainer-expert-fraction", "0.25",
               "--expert-action-noise", "0.1").stdout
     assert "trainer frozen at step 400" in out  # 200 trainer updates after learning starts at 200
     results = json.loads((tmp_path / "runs/r/results.json").read_text())
@@ -261,6 +317,12 @@ def test_end_to_end_every_update_path_then_covariate_shift(run, tmp_path):
     assert [e["step"] for e in results["evals"]] == [300, 600]
     dynamics = json.loads((tmp_path / "runs/r/dynamics.json").read_text())
     assert [d["step"] for d in dynamics] == [400, 600] and dynamics[1]["rfdc"] is not None
+    assert results["trainer_frozen_at"] == 400 and results["reward_measures"] == dynamics
+    measured = dynamics[1]
+    for key in ("r_s_demos", "r_s_student", "r_s_absorbing", "d_demos", "d_student", "critic_loss", "critic_loss_relative"):
+        assert np.isfinite(measured[key]), key
+    assert measured["r_s_spread"] == pytest.approx(measured["r_s_demos"] - measured["r_s_student"])
+    assert 0 < measured["d_demos"] < 1 and measured["trainer_frozen_at"] == 400
     ckpt = torch.load(tmp_path / "runs/r/checkpoint.pt", weights_only=False)
     assert ckpt["rile"]["trainer_updates"] > 0 and ckpt["disc_optimizer"]["state"] and ckpt["trainer"]["q_optimizer"]["state"]
     out = run("rile.py", *TINY, "--total-timesteps", "400", "--run-name", "cs", "--reward-from", "runs/r/reward.pt",

@@ -94,7 +94,7 @@ def test_discriminator_and_trainer_inputs_from_states_only(monkeypatch, trainer_
     monkeypatch.setattr(trainer, "update", recorder(seen, "trainer"))
     monkeypatch.setattr(disc, "update", lambda expert_x, policy_x: seen.setdefault("disc", (expert_x, policy_x)) and {})
     torch.manual_seed(1)
-    rile.rile_update(student, trainer, disc, rb, expert, args, state)
+    rile.rile_update(student, trainer, disc, rb, expert, args, state, 1)
     expert_x, policy_x = seen["disc"]
     assert expert_x.shape[1] == policy_x.shape[1] == 2 * OBS  # D scores (s, s') for the expert and the student
     assert ((expert_x[:, OBS:] == 200.0).all()) and (expert_x[:, :OBS] >= 100).all()
@@ -121,7 +121,8 @@ def test_discriminator_and_trainer_inputs_from_states_only(monkeypatch, trainer_
 TINY = ["--env-id", "InvertedPendulum-v4", "--learning-starts", "200", "--eval-freq", "300", "--eval-episodes", "2",
         "--hidden-dim", "32", "--trainer-hidden-dim", "32", "--batch-size", "32", "--trainer-batch-size", "32",
         "--disc-batch-size", "16", "--dynamics-freq", "200", "--num-expert-trajs", "2", "--total-timesteps", "600",
-        "--trainer-freeze-min-updates", "200", "--trainer-freeze-threshold", "1e9"]
+        "--trainer-freeze-min-updates", "200", "--trainer-freeze-threshold", "1e9",
+        "--trainer-freeze-window", "0", "--trainer-freeze-after", "0"]
 
 
 def test_rile_from_a_file_without_actions_then_covariate_shift(run, tmp_path):
@@ -202,6 +203,7 @@ DRAIL = ["--env-id", "InvertedPendulum-v4", "--learning-starts", "200", "--total
          "--eval-episodes", "1", "--hidden-dim", "32", "--trainer-hidden-dim", "32", "--batch-size", "32",
          "--trainer-batch-size", "32", "--disc-batch-size", "16", "--disc-hidden-dim", "32", "--diffusion-steps", "100",
          "--num-expert-trajs", "2", "--trainer-freeze-min-updates", "100", "--trainer-freeze-threshold", "1e9",
+         "--trainer-freeze-window", "0", "--trainer-freeze-after", "0",
          "--state-only"]
 
 
