@@ -674,8 +674,7 @@ class Run:
         self.writer = SummaryWriter(self.dir)
         table = "\n".join(f"|{k}|{v}|" for k, v in vars(args).items())
         self.writer.add_text("hyperparameters", f"|param|value|\n|-|-|\n{table}")
-        self.machine = {"host": platform.node(), "torch": torch.__version__, "threads": torch.get_num_threads(),
-                        "device": str(device)}
+        self.machine = machine(device)
         if checkpoint:
             for name, obj in stateful.items():
                 if isinstance(obj, dict):
@@ -781,6 +780,23 @@ class Run:
         if self.evals:
             print(f"done: {args.total_timesteps} steps in {format_time(self.wall_time())}, final eval return "
                   f"{self.last_eval()}{status}")
+
+
+def machine(device) -> dict:
+    """What decides a run's numbers besides its config: versions, CPU, threads, device, and the code's git commit
+    ("-dirty" with uncommitted changes; None outside a git checkout)."""
+    from importlib.metadata import version
+    from subprocess import run
+    cpu = next((line.split(":", 1)[1].strip() for line in open("/proc/cpuinfo") if line.startswith("model name")),
+               platform.processor()) if os.path.exists("/proc/cpuinfo") else platform.processor()
+    try:
+        git = run(["git", "describe", "--always", "--dirty", "--abbrev=12"], capture_output=True, text=True,
+                  cwd=os.path.dirname(os.path.abspath(__file__))).stdout.strip()
+    except OSError:  # no git installed
+        git = ""
+    return {"host": platform.node(), "cpu": cpu, "cpu_capability": torch.backends.cpu.get_cpu_capability(),
+            "threads": torch.get_num_threads(), "device": str(device), "python": platform.python_version(),
+            **{name: version(name) for name in ("torch", "numpy", "gymnasium", "mujoco")}, "git": git or None}
 
 
 def format_time(seconds: float) -> str:

@@ -185,6 +185,10 @@ def test_end_to_end_run_reaches_updates_and_records_demos(run, tmp_path):
     results = json.loads((tmp_path / "runs/e2e/results.json").read_text())
     assert [e["step"] for e in results["evals"]] == [300, 600] and results["finished"]
     assert results["machine"]["torch"] == torch.__version__ and results["config"]["env_id"] == "InvertedPendulum-v4"
+    machine = results["machine"]
+    assert machine["numpy"] == np.__version__ and machine["cpu_capability"] == torch.backends.cpu.get_cpu_capability()
+    assert {"python", "gymnasium", "mujoco", "cpu", "threads", "device", "git"} <= set(machine)
+    assert machine["git"] is None or len(machine["git"].split("-")[0]) == 12  # the script's commit, -dirty if edited
     ckpt = load_ckpt(tmp_path, "e2e")
     assert ckpt["step"] == 600 and ckpt["replay_buffer"]["size"] == 600
     assert ckpt["agent"]["q_optimizer"]["state"], "the critics' optimiser never stepped"
