@@ -49,7 +49,7 @@ Implementation choices and deviations
    it executes during training); `--student-expert-fraction` / `--trainer-expert-fraction` (that share of
    every sampled batch is expert pairs, which in expectation is that share of the buffer; expert pairs
    in the trainer's batch get a fresh a_T from the trainer); reward-function dynamics every
-   `--dynamics-freq` steps (RFDC, FS-RFDC, CPR; written to dynamics.json and TensorBoard).
+   `--dynamics-freq` steps (RFDC, FS-RFDC, CPR, with what r_S and D pay; see "Logged metrics").
 9. From states only (`--state-only`, the regime of the paper's LocoMuJoCo results): the demonstrations'
    actions are dropped on loading (a file without them loads) and D scores transitions (s, s') as in
    GAIfO, the expert's and the student's alike. The trainer still observes (s, a_S) by default: under
@@ -62,9 +62,13 @@ Implementation choices and deviations
    trainer's reward on expert data and is not logged with the (s, a_S) trainer.
 
 Logged metrics: charts/episodic_return, charts/SPS, eval/return, eval/normalized_return,
-losses/{student,trainer}_{qf_loss,qf_values,actor_loss,alpha_loss,alpha,entropy}, losses/disc_loss,
+losses/{student,trainer}_{qf_loss,qf_values,qf_target_var,actor_loss,alpha_loss,alpha,entropy}, losses/disc_loss,
 losses/disc_gp, disc/expert_prob, disc/policy_prob, reward/learned_mean, reward/trainer_reward_mean,
-trainer/frozen, trainer/critic_loss_ema, dynamics/rfdc, dynamics/fs_rfdc, dynamics/cpr.
+trainer/frozen, trainer/critic_loss_ema. Every --dynamics-freq steps, in TensorBoard (dynamics/<name>),
+dynamics.json and results.json ("reward_measures", beside "trainer_frozen_at"): r_s_demos, r_s_student and
+r_s_spread (r_S on the demonstrations' pairs, on the student's pairs of the interval, their difference),
+r_s_absorbing, d_demos and d_student (D on the same pairs), critic_loss and critic_loss_relative (the freeze
+test's statistics), rfdc, fs_rfdc, cpr (the paper's reward dynamics, as benchmarks/reward_dynamics.py measures them).
 """
 
 import dataclasses
@@ -223,7 +227,8 @@ class Args:
     student_action_noise: float = 0.0
     """std of Gaussian noise added to the actions the student executes while training"""
     dynamics_freq: int = 10_000
-    """log RFDC, FS-RFDC and CPR every this many steps (0 disables)"""
+    """measure the learned reward every this many steps: r_S and D on demonstrations and student, RFDC, FS-RFDC, CPR
+    (0 disables)"""
 
 
 # ALGO LOGIC: the discriminator (gail.py's), then RILe's rewards and update (a block drail_disc.py shares)

@@ -376,3 +376,19 @@ def test_absorbing_states_end_to_end(run, tmp_path):
     run("rile.py", *TINY, "--total-timesteps", "210", "--run-name", "surv", "--termination-remedy", "survival")
     proc = run("benchmarks/rile_rewards.py", "runs/surv", check=False)  # not an absorbing-state run
     assert proc.returncode != 0 and "--termination-remedy survival" in proc.stderr
+
+
+def test_reward_measures_table(tmp_path, capsys):
+    from benchmarks import reward_measures
+    measure = {"step": 10, "r_s_demos": 0.5, "r_s_student": -0.25, "r_s_spread": 0.75, "r_s_absorbing": None,
+               "d_demos": 0.7, "d_student": 0.3, "critic_loss_relative": 0.05, "fs_rfdc": None, "cpr": 0.1,
+               "trainer_frozen_at": None}
+    results = {"evals": [{"step": 10, "normalized": 0.123}], "reward_measures": [measure, measure | {"step": 20,
+                                                                                                 "trainer_frozen_at": 15}]}
+    rows = reward_measures.table(results).splitlines()
+    assert rows[1].split("\t") == ["10", "0.12", "0.500", "-0.250", "0.750", "-", "0.700", "0.300", "0.050", "-", "0.100",
+                                   "learning"]
+    assert rows[2].split("\t")[1] == "-" and rows[2].endswith("frozen at 15")
+    (tmp_path / "old.json").write_text(json.dumps({"evals": []}))
+    with pytest.raises(SystemExit, match="no reward_measures"):
+        reward_measures.main([str(tmp_path / "old.json")])

@@ -1,0 +1,44 @@
+"""What rile.py's learned reward paid over a run, from its results file: one row per measure (every
+--dynamics-freq steps), beside the evaluation at that step.
+
+Columns: the student's evaluation (x expert); r_S on the demonstrations' pairs, on the student's pairs of the
+interval, their spread, and at the absorbing state; D on both; the freeze test's statistic (critic loss
+relative to its targets' variance); FS-RFDC and CPR; whether the trainer was frozen.
+
+    python benchmarks/reward_measures.py benchmarks/results/HalfCheetah-v4/rile-gp0-autotune__1.json [more files]
+"""
+
+import argparse
+import json
+
+COLUMNS = [("r_s_demos", "r_S demo"), ("r_s_student", "r_S stud"), ("r_s_spread", "spread"), ("r_s_absorbing", "r_S abs"),
+           ("d_demos", "D demo"), ("d_student", "D stud"), ("critic_loss_relative", "crit rel"), ("fs_rfdc", "FS-RFDC"),
+           ("cpr", "CPR")]
+
+
+def table(results: dict) -> str:
+    """The measures of one results file as a tab-separated table with a header line."""
+    normalized = {e["step"]: e["normalized"] for e in results["evals"]}
+    rows = ["step\teval (x expert)\t" + "\t".join(label for _, label in COLUMNS) + "\ttrainer"]
+    for m in results.get("reward_measures") or []:
+        cells = [f"{m[key]:.3f}" if m.get(key) is not None else "-" for key, _ in COLUMNS]
+        frozen = m.get("trainer_frozen_at")
+        score = normalized.get(m["step"])
+        rows.append(f"{m['step']}\t{'-' if score is None else f'{score:.2f}'}\t" + "\t".join(cells)
+                    + f"\t{'learning' if frozen is None else f'frozen at {frozen}'}")
+    return "\n".join(rows)
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("files", nargs="+", help="results files of rile.py runs")
+    for path in parser.parse_args(argv).files:
+        with open(path) as f:
+            results = json.load(f)
+        if not results.get("reward_measures"):
+            raise SystemExit(f"error: {path} has no reward_measures; rile.py runs write them (since issue 28)")
+        print(f"{path}: trainer frozen at {results.get('trainer_frozen_at')}\n{table(results)}\n")
+
+
+if __name__ == "__main__":
+    main()
