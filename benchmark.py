@@ -278,6 +278,23 @@ def env_table(env_id: str, algos: dict) -> str:
     return "\n".join(lines)
 
 
+VERSION_KEYS = ("torch", "numpy", "gymnasium", "mujoco", "cpu", "cpu_capability")
+
+
+def version_note(algos: dict) -> str:
+    """A line saying which versions and CPUs the rows of one table came from, when they are not all the same
+    (results files from before issue 30 record only torch's version)."""
+    seen = {}
+    for algo, runs in algos.items():
+        for r in runs:
+            machine = r.get("machine") or {}
+            key = ", ".join(f"{k} {machine[k]}" for k in VERSION_KEYS if machine.get(k)) or "no versions recorded"
+            seen.setdefault(key, set()).add(algo)
+    if len(seen) < 2:
+        return ""
+    return "Versions differ between these rows: " + "; ".join(f"{key} ({', '.join(sorted(a))})" for key, a in seen.items())
+
+
 def plot_env(env_id: str, algos: dict, path: str) -> None:
     import matplotlib
 
@@ -311,7 +328,9 @@ def report(results_dir: str = RESULTS_DIR, readme: Optional[str] = os.path.join(
         png = os.path.join(results_dir, f"{env_id}.png")
         plot_env(env_id, algos, png)
         rel_png = os.path.relpath(png, os.path.dirname(readme) if readme else results_dir)
-        parts.append(f"### {env_id}\n\n{env_table(env_id, algos)}\n\n![{env_id} learning curves]({rel_png})\n")
+        note = version_note(algos)
+        parts.append(f"### {env_id}\n\n{env_table(env_id, algos)}\n\n" + (f"{note}\n\n" if note else "")
+                     + f"![{env_id} learning curves]({rel_png})\n")
     text = "\n".join(parts) or "No results yet.\n"
     text += ("\nFinal return: the last deterministic evaluation of each seed, mean ± standard error over seeds; "
              "normalized: return / the demonstrations' mean return; IQM: interquartile mean over seeds with a "

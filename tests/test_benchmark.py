@@ -185,3 +185,14 @@ def test_scalars_averages_each_tag_between_evaluations(tmp_path):
         scalars.table(scalars.load(str(tmp_path)), ["losses/nope"])
     with pytest.raises(SystemExit, match="no events"):
         scalars.load(str(tmp_path / "empty"))
+
+
+def test_report_says_when_rows_came_from_different_versions():
+    same = {"torch": "2.13.0+cpu", "numpy": "2.4.6", "gymnasium": "1.4.0", "mujoco": "4.0.0", "cpu": "AMD EPYC",
+            "cpu_capability": "AVX2"}
+    runs = lambda algo, machine: [fake_result(algo, 1, [1.0]) | {"machine": machine}]
+    assert benchmark.version_note({"gail": runs("gail", same), "rile": runs("rile", same)}) == ""
+    note = benchmark.version_note({"gail": runs("gail", same), "rile": runs("rile", same | {"cpu_capability": "AVX512"}),
+                                   "bc": runs("bc", {"torch": "2.13.0+cpu"})})
+    assert note.startswith("Versions differ between these rows: ") and note.count("(") == 3
+    assert "cpu_capability AVX512 (rile)" in note and "cpu_capability AVX2 (gail)" in note and "torch 2.13.0+cpu (bc)" in note
