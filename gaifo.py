@@ -124,6 +124,9 @@ class Args:
     """the norm the gradient penalty pulls D's input gradient towards: 1 (one-centred, DAC's) or 0 (zero-centred)"""
     disc_update_every: int = 1
     """one discriminator update every this many env steps (the paper's "1 update per round")"""
+    disc_normalize: bool = False
+    """standardise the discriminator's inputs by the demonstrations' mean and std (its gradient penalty then acts
+    in those units)"""
 
     # Imitation arguments
     expert_path: Optional[str] = None
@@ -138,27 +141,35 @@ class Args:
 # --- shared: discriminator ---
 class Discriminator(nn.Module):
     """D(x) = sigmoid(logit(x)), expert = 1, trained with BCE and a gradient penalty on random interpolates of
-    expert and policy inputs: one-centred (gp_center 1, DAC's) or zero-centred (gp_center 0)."""
+    expert and policy inputs: one-centred (gp_center 1, DAC's) or zero-centred (gp_center 0). Inputs are
+    standardised by `shift` and `scale` (the demonstrations' statistics, `input_stats`; none by default), and the
+    penalty acts in those units."""
 
-    def __init__(self, in_dim: int, hidden_dim: int, lr: float, gp_weight: float, gp_center: float = 1.0):
+    def __init__(self, in_dim: int, hidden_dim: int, lr: float, gp_weight: float, gp_center: float = 1.0,
+                 stats: Optional[tuple] = None):
         super().__init__()
         self.net = nn.Sequential(
             nn.Linear(in_dim, hidden_dim), nn.Tanh(), nn.Linear(hidden_dim, hidden_dim), nn.Tanh(), nn.Linear(hidden_dim, 1)
         )
+        shift, scale = stats if stats is not None else (torch.zeros(in_dim), torch.ones(in_dim))
+        self.register_buffer("shift", torch.as_tensor(shift, dtype=torch.float32).clone())
+        self.register_buffer("scale", torch.as_tensor(scale, dtype=torch.float32).clone())
         self.gp_weight, self.gp_center = gp_weight, gp_center
         self.optimizer = torch.optim.Adam(self.parameters(), lr=lr)
 
     def forward(self, x):
-        return self.net(x).squeeze(-1)
+        return self.net((x - self.shift) / self.scale).squeeze(-1)
 
     def loss(self, expert_x, policy_x):
-        """BCE(D(expert), 1) + BCE(D(policy), 0) + gp_weight * E[(||grad_x logit(x_hat)|| - gp_center)^2]."""
-        expert_logits, policy_logits = self(expert_x), self(policy_x)
+        """BCE(D(expert), 1) + BCE(D(policy), 0) + gp_weight * E[(||grad_z logit(z_hat)|| - gp_center)^2], z the
+        standardised inputs."""
+        expert_z, policy_z = (expert_x - self.shift) / self.scale, (policy_x - self.shift) / self.scale
+        expert_logits, policy_logits = self.net(expert_z).squeeze(-1), self.net(policy_z).squeeze(-1)
         bce = F.binary_cross_entropy_with_logits(expert_logits, torch.ones_like(expert_logits))
         bce = bce + F.binary_cross_entropy_with_logits(policy_logits, torch.zeros_like(policy_logits))
         eps = torch.rand(len(expert_x), 1, device=expert_x.device)
-        x_hat = (eps * expert_x + (1 - eps) * policy_x).requires_grad_(True)
-        grad = torch.autograd.grad(self(x_hat).sum(), x_hat, create_graph=True)[0]
+        z_hat = (eps * expert_z + (1 - eps) * policy_z).requires_grad_(True)
+        grad = torch.autograd.grad(self.net(z_hat).sum(), z_hat, create_graph=True)[0]
         gp = (grad.norm(2, dim=1) - self.gp_center).pow(2).mean()
         return bce + self.gp_weight * gp, bce, gp, torch.sigmoid(expert_logits).mean(), torch.sigmoid(policy_logits).mean()
 
@@ -174,6 +185,14 @@ class Discriminator(nn.Module):
     @torch.no_grad()
     def prob(self, x):
         return torch.sigmoid(self(x))
+
+
+def input_stats(x):
+    """Per-column mean and std of D's inputs on the demonstrations, for `--disc-normalize`; a column that is
+    constant there (an absorbing indicator the demonstrations never set) is left as it is."""
+    mean, std = x.mean(0), x.std(0)
+    varies = std > 1e-6
+    return torch.where(varies, mean, 0.0), torch.where(varies, std, 1.0)
 # --- end shared: discriminator ---
 
 
@@ -755,7 +774,9 @@ if __name__ == "__main__":
     # ALGO LOGIC: the agent, the discriminator and the replay buffer
     aug_dim = obs_dim + absorbing  # with absorbing states, every stored observation has the indicator column
     agent = SAC(aug_dim, act_dim, low, high, args, device, absorbing=absorbing)
-    disc = Discriminator(2 * aug_dim, args.disc_hidden_dim, args.disc_lr, args.disc_gp, args.disc_gp_center).to(device)
+    stats = input_stats(torch.cat([expert["obs"], expert["next_obs"]], -1)) if args.disc_normalize else None
+    disc = Discriminator(2 * aug_dim, args.disc_hidden_dim, args.disc_lr, args.disc_gp, args.disc_gp_center,
+                         stats).to(device)
     rb = ReplayBuffer(aug_dim, act_dim, args.buffer_size, device)
     stateful = {"agent": agent, "disc": disc, "disc_optimizer": disc.optimizer, "replay_buffer": rb}
     run = Run(args, checkpoint, stateful, float(demos["episode_returns"].mean()), device)

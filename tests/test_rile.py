@@ -271,6 +271,22 @@ def test_zero_centred_gradient_penalty_by_hand():
     assert gp.item() == pytest.approx(25.0) and loss.item() == pytest.approx(bce.item() + 250.0, rel=1e-6)  # |(3, 4)|^2
 
 
+def test_standardised_inputs_and_their_statistics():
+    x = torch.tensor([[1.0, 5.0, 0.0], [3.0, 5.0, 0.0], [5.0, 5.0, 0.0]])  # column 1 and 2 constant in the demonstrations
+    shift, scale = rile.input_stats(x)
+    assert shift.tolist() == [3.0, 0.0, 0.0] and scale.tolist() == [2.0, 1.0, 1.0]
+    disc = rile.Discriminator(3, 8, lr=1e-3, gp_weight=1.0, gp_center=0.0, stats=(shift, scale))
+    disc.net = nn.Linear(3, 1)
+    with torch.no_grad():
+        disc.net.weight.copy_(torch.tensor([[1.0, 2.0, 4.0]]))
+        disc.net.bias.zero_()
+    assert disc(torch.tensor([[7.0, 1.0, 1.0]])).item() == pytest.approx(2.0 + 2.0 + 4.0)  # (7 - 3) / 2 = 2
+    # the penalty acts on the standardised input: |grad_z| = |(1, 2, 4)|, zero-centred: 21
+    _, _, gp, _, _ = disc.loss(torch.tensor([[1.0, 0.0, 0.0]]), torch.tensor([[0.0, 1.0, 0.0]]))
+    assert gp.item() == pytest.approx(21.0)
+    assert {"shift", "scale"} <= set(disc.state_dict())  # saved with the reward
+
+
 def test_discriminator_learns_to_separate():
     torch.manual_seed(0)
     disc = rile.Discriminator(2, 16, lr=1e-2, gp_weight=1.0)
