@@ -17,6 +17,7 @@ Implementation choices and deviations
 3. Discriminator: the same block as rile.py (64-64 tanh, BCE with expert = 1, one-centred gradient
    penalty of weight 1, lr 3e-5, 32 + 32 pairs per update, one update per env step), trained on the
    most recent `--disc-buffer-size` (16,384) learner transitions: the paper's GAIL settings.
+   `--disc-gp-center`, `--disc-normalize` and `--disc-update-every` as in rile.py (its choice 4).
 4. SAC: the shared block of expert.py with the paper's GAIL column: tau 0.01, fixed alpha 0.2.
 5. Noise-robustness options as in rile.py: Gaussian noise on the expert's actions or states.
 6. Termination bias (rile.py's `--termination-remedy`): `none` keeps terminations terminal, which with

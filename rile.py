@@ -21,8 +21,12 @@ Implementation choices and deviations
 3. The trainer's and the discriminator's small buffers (16,384 each by default) are windows over the
    most recent transitions of the student's buffer: the same as FIFO buffers of that size, no copies.
 4. Discriminator: 64-64 tanh MLP on concat(s, a), logit "expert is high", BCE (expert = 1) on balanced
-   batches, plus a one-centred gradient penalty on random interpolates of expert and student pairs
-   (weight 1, `--disc-gp`; the paper gives the weight, not the form, which is DAC's).
+   batches, plus a gradient penalty on random interpolates of expert and student pairs: one-centred, weight 1
+   (the paper gives the weight, not the form, which is DAC's). With it D reaches its floor on the student's
+   pairs (HalfCheetah-v4: 0.03 by 20k), where 2D - 1 is flat and the trainer has nothing to follow;
+   `--disc-gp-center 0` (zero-centred, Mescheder et al. 2018), `--disc-gp`, `--disc-normalize` (inputs
+   standardised by the demonstrations' statistics) and `--disc-update-every` are the knobs issue 28's screens
+   compare (docs/reward-that-teaches.md); gail.py shares the block and its defaults.
 5. Freezing (the paper: freeze the trainer "once its critic network converges", threshold 0.1, so that the
    student is not confused "in the later stages of training"; it names no test). Convergence is read from a
    moving average (0.99) of the trainer's critic loss relative to the variance of its TD targets: the share of
@@ -41,7 +45,9 @@ Implementation choices and deviations
    termination leads to an absorbing state that loops to itself, whose reward the trainer learns from
    D like any other pair's (see `store`; the trainer's transitions follow the student's).
 7. Epsilon-greedy (`--epsilon`, 0.2): with that probability the student takes a uniform random action.
-   Student and trainer use a fixed temperature 0.2 (the paper's table), `--autotune` for the student.
+   Student and trainer use a fixed temperature 0.2 (the paper's table), `--autotune` for the student: with
+   r_S in [-1, 1], alpha 0.2 outweighs what imitation pays on HalfCheetah-v4 (nothing learned in 40k steps with
+   an informative D; 0.75 x expert at 50k with `--autotune`).
 8. Experiments of the paper, as flags: `--trainer-reward` (six rewards of the ablation);
    `--expert-action-noise` / `--expert-state-noise` (Gaussian noise added once to the loaded
    demonstrations, actions clipped to the box); `--reward-from runs/<run>/reward.pt` (covariate shift:
