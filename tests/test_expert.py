@@ -134,7 +134,7 @@ def test_update_soft_updates_the_targets_once():
     metrics = agent.update(*batch)
     for old, online, new in zip(old_target, agent.qf.parameters(), agent.qf_target.parameters()):
         assert torch.allclose(new, 0.9 * old + 0.1 * online, atol=1e-6)
-    names = ("qf_loss", "qf_values", "actor_loss", "alpha_loss", "alpha", "entropy")
+    names = ("qf_loss", "qf_values", "qf_target_var", "actor_loss", "alpha_loss", "alpha", "entropy")
     assert sorted(metrics) == sorted(f"losses/{name}" for name in names)
     assert all(value.shape == () and torch.isfinite(value) for value in metrics.values())
 
