@@ -167,6 +167,11 @@ class Discriminator(nn.Module):
     def forward(self, x):
         return self.net((x - self.shift) / self.scale).squeeze(-1)
 
+    def load_state_dict(self, state: dict, strict: bool = True):
+        """Files saved before inputs could be standardised have no shift and scale: none then."""
+        return super().load_state_dict({"shift": torch.zeros_like(self.shift), "scale": torch.ones_like(self.scale)}
+                                       | dict(state), strict)
+
     def loss(self, expert_x, policy_x):
         """BCE(D(expert), 1) + BCE(D(policy), 0) + gp_weight * E[(||grad_z logit(z_hat)|| - gp_center)^2], z the
         standardised inputs."""

@@ -285,6 +285,9 @@ def test_standardised_inputs_and_their_statistics():
     _, _, gp, _, _ = disc.loss(torch.tensor([[1.0, 0.0, 0.0]]), torch.tensor([[0.0, 1.0, 0.0]]))
     assert gp.item() == pytest.approx(21.0)
     assert {"shift", "scale"} <= set(disc.state_dict())  # saved with the reward
+    old = {k: v for k, v in disc.state_dict().items() if k not in ("shift", "scale")}  # a file from before
+    disc.load_state_dict(old)
+    assert disc.shift.tolist() == [0.0] * 3 and disc.scale.tolist() == [1.0] * 3
 
 
 def test_discriminator_learns_to_separate():
