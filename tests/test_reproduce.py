@@ -35,7 +35,8 @@ def evaluations(cwd) -> list:
 def test_hopper_gives_the_committed_numbers(tmp_path):
     expected = json.loads(EXPECTED.read_text())
     here = installed()
-    differ = [f"{key} {here[key]} (recorded: {expected['machine'][key]})" for key in KEYS if here[key] != expected["machine"][key]]
+    recorded = expected["machine"]
+    differ = [f"{key} {here[key]} (recorded: {recorded[key]})" for key in KEYS if here[key] != recorded[key]]
     if differ:
         pytest.skip("exact numbers are only expected on the recorded versions and CPU; here " + ", ".join(differ))
     assert evaluations(tmp_path) == expected["evals"], "same versions and CPU, different numbers: the code's behaviour changed"
