@@ -148,7 +148,7 @@ class Args:
     trainer_tau: float = 0.005
     """the trainer's target smoothing coefficient"""
     trainer_freeze: bool = True
-    """freeze the trainer once its critic has converged (header, choice 5)"""
+    """freeze the trainer once its critic has converged (rile.py's header, choice 5)"""
     trainer_freeze_stat: Literal["relative", "loss"] = "relative"
     """relative: the trainer's critic loss over the variance of its targets; loss: the raw critic loss (the paper's words)"""
     trainer_freeze_threshold: float = 0.1

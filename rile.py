@@ -1104,7 +1104,7 @@ if __name__ == "__main__":
         if out["r_s_demos"] is not None:
             out["r_s_spread"] = out["r_s_demos"] - out["r_s_student"]
         run.log({f"dynamics/{key}": value for key, value in out.items() if key != "step" and value is not None}, step)
-        run.extra["trainer_frozen_at"], run.extra["reward_measures"] = state["frozen_at"], dynamics.history
+        run.extra["trainer_frozen_at"] = state["frozen_at"]  # reward_measures is dynamics.history itself
         with open(os.path.join(run.dir, "dynamics.json"), "w") as f:
             json.dump(dynamics.history, f, indent=1)
 
