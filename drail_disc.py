@@ -38,7 +38,6 @@ eval/normalized_return, losses/{student,trainer}_{qf_loss,qf_values,actor_loss,a
 losses/disc_loss, losses/disc_gp (always 0), disc/expert_prob, disc/policy_prob, reward/learned_mean.
 """
 
-import dataclasses
 import json
 import math
 import os
@@ -47,7 +46,7 @@ import random
 import signal
 import sys
 import time
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass, fields, replace
 from typing import Literal, NamedTuple, Optional
 
 import gymnasium as gym
@@ -313,34 +312,95 @@ def gail_update(agent: "SAC", disc: nn.Module, rb: "ReplayBuffer", expert: dict,
 
 
 # --- shared: rile ---
-def trainer_reward(name: str, d, a_t):
-    """The trainer's reward for discriminator output d = D(s, a_S) in (0, 1) and its action a_t in [-1, 1]."""
+def rile_update(student: "SAC", trainer: "SAC", disc: nn.Module, rb: "ReplayBuffer", expert: dict, args,
+                state: dict, step: int) -> dict:
+    """One round of the paper's Algorithm 2 at env step `step`: (1) the student learns from the current trainer's
+    rewards, (2) the discriminator from expert pairs against the student's recent ones (every --disc-update-every
+    steps), (3) the trainer from the current discriminator, and the freeze test. `state` (rile_state) holds
+    frozen_at, reward_only (covariate shift: only the student learns) and the freeze statistic. `disc`: any
+    discriminator with prob(x) and update(expert_x, policy_x) (gail.py's here, DRAIL's in drail_disc.py)."""
+    seen = "next_obs" if args.state_only else "actions"  # what D sees beside s: a_S, or s' with --state-only
+    # (1) student: SAC on r_S = the current trainer's action on o_T = (s, a_S)
+    batch = mix_expert(rb.sample(args.batch_size), expert, args.student_expert_fraction)
+    obs_trainer = trainer_input(batch.obs, batch.actions, batch.next_obs, args.trainer_obs)
+    r_student = student_reward(trainer.actor, obs_trainer, args.termination_remedy)
+    metrics = student.update(batch.obs, batch.actions, batch.next_obs, r_student, batch.terminations, prefix="losses/student_")
+    metrics["reward/learned_mean"] = r_student.mean()
+    if state["reward_only"]:
+        return metrics
+    # (2) discriminator: expert pairs (label 1) against the most recent student pairs
+    if step % args.disc_update_every == 0:
+        idx = torch.randint(0, len(expert["obs"]), (args.disc_batch_size,), device=expert["obs"].device)
+        policy = rb.sample(args.disc_batch_size, recent=args.disc_buffer_size)
+        metrics |= disc.update(torch.cat([expert["obs"][idx], expert[seen][idx]], -1),
+                               torch.cat([policy.obs, getattr(policy, seen)], -1))
+    if state["frozen_at"] is not None:
+        return metrics
+    # (3) trainer: SAC on its recent transitions (o_T, a_T as stored, o_T'), r_T from the current discriminator
+    idx = rb.indices(args.trainer_batch_size, recent=args.trainer_buffer_size)
+    batch = mix_expert(rb.batch(idx), expert, args.trainer_expert_fraction, trainer, args.trainer_obs)
+    obs_trainer, a_trainer = trainer_input(batch.obs, batch.actions, batch.next_obs, args.trainer_obs), batch.extra
+    with torch.no_grad():
+        d = disc.prob(torch.cat([batch.obs, getattr(batch, seen)], -1))
+        r_trainer = trainer_reward(args.trainer_reward, d, a_trainer.squeeze(-1))
+        if args.trainer_obs == "transition":  # o_T' = (s', s''), s'' as the student went on
+            next_obs_trainer = torch.cat([batch.next_obs, successor_next_obs(rb, idx, batch)], -1)
+        else:  # o_T' = (s', a'_S), a'_S from the current student (header, choice 2)
+            next_obs_trainer = torch.cat([batch.next_obs, student.policy(batch.next_obs)[0]], -1)
+    metrics |= trainer.update(obs_trainer, a_trainer, next_obs_trainer, r_trainer, batch.terminations,
+                              prefix="losses/trainer_")
+    metrics["reward/trainer_reward_mean"] = r_trainer.mean()
+    freeze_test(metrics["losses/trainer_qf_loss"], metrics["losses/trainer_qf_target_var"], args, state, step)
+    return metrics
+
+
+def trainer_reward(name: str, d, a_trainer):
+    """The trainer's reward for discriminator output d = D(s, a_S) in (0, 1) and its action a_T in [-1, 1]."""
     v = 2 * d - 1
     if name == "difference":
-        return -(v - a_t).abs()
+        return -(v - a_trainer).abs()
     if name == "exp-difference":
-        return torch.exp(-(v - a_t).abs())
+        return torch.exp(-(v - a_trainer).abs())
     if name == "multiplication":
-        return v * a_t
+        return v * a_trainer
     if name == "naive":
         return d
     if name == "exp-naive":
         return torch.exp(1 - d)
     if name == "sigmoid":
-        return d * torch.sigmoid(a_t)
+        return d * torch.sigmoid(a_trainer)
     raise ValueError(f"unknown trainer reward '{name}'; choose from {TRAINER_REWARDS}")
 
 
-def student_reward(trainer_actor, obs_t, remedy: str):
+def student_reward(trainer_actor, obs_trainer, remedy: str):
     """r_S: the trainer's deterministic action on its observation o_T; with remedy 'survival', mapped to [0, 1]."""
     with torch.no_grad():
-        a_t = trainer_actor.deterministic(obs_t).squeeze(-1)
-    return (1 + a_t) / 2 if remedy == "survival" else a_t
+        a_trainer = trainer_actor.deterministic(obs_trainer).squeeze(-1)
+    return (1 + a_trainer) / 2 if remedy == "survival" else a_trainer
 
 
 def trainer_input(obs, actions, next_obs, trainer_obs: str):
     """What the trainer observes, o_T: the student's pair (s, a_S) (paper), or its transition (s, s')."""
     return torch.cat([obs, next_obs if trainer_obs == "transition" else actions], -1)
+
+
+def make_trainer(obs_dim: int, act_dim: int, args, device) -> "SAC":
+    """The trainer: a SAC agent on o_T whose one action a_T in [-1, 1] is the student's reward, with its own width,
+    learning rate, discount and fixed temperature. It treats the absorbing state like any other observation."""
+    trainer_args = replace(args, hidden_dim=args.trainer_hidden_dim, q_lr=args.trainer_lr, policy_lr=args.trainer_lr,
+                           alpha=args.trainer_alpha, autotune=False, gamma=args.trainer_gamma, tau=args.trainer_tau)
+    obs_trainer_dim = obs_dim + (obs_dim if args.trainer_obs == "transition" else act_dim)
+    return SAC(obs_trainer_dim, 1, np.array([-1.0]), np.array([1.0]), trainer_args, device)
+
+
+def trainer_acts(trainer: "SAC", obs, action, next_obs, terminated: bool, absorbing: bool, trainer_obs: str):
+    """a_T for one env step of the student, sampled when the student acts and stored beside its transition; with
+    absorbing states a termination leads to the absorbing state, and its self-loop gets an a_T too."""
+    s_abs = absorbing_state(len(obs))
+    indicated = (lambda s: np.append(s, 0.0)) if absorbing else (lambda s: s)  # env states: indicator 0
+    sees = lambda s, a, s_next: np.concatenate([s, s_next if trainer_obs == "transition" else a])
+    a_trainer = trainer.actor.act(sees(indicated(obs), action, s_abs if absorbing and terminated else indicated(next_obs)))
+    return a_trainer, trainer.actor.act(sees(s_abs, np.zeros_like(action), s_abs)) if absorbing and terminated else ()
 
 
 def successor_next_obs(rb: "ReplayBuffer", idx, batch: "Batch"):
@@ -352,57 +412,20 @@ def successor_next_obs(rb: "ReplayBuffer", idx, batch: "Batch"):
     return torch.where(continues, following.next_obs, batch.next_obs)
 
 
-def mix_expert(batch: "Batch", expert: dict, fraction: float) -> "Batch":
-    """Replace the first `fraction` of a batch's (obs, actions, next_obs, terminations) with expert pairs."""
+def mix_expert(batch: "Batch", expert: dict, fraction: float, trainer: Optional["SAC"] = None, trainer_obs: str = ""):
+    """Experiment (--student-expert-fraction, --trainer-expert-fraction): the first `fraction` of a batch's (obs,
+    actions, next_obs, terminations) replaced by expert pairs; for the trainer's batch they get a fresh a_T."""
     n = int(round(fraction * len(batch.obs)))
     if n == 0:
         return batch
     idx = torch.randint(0, len(expert["obs"]), (n,), device=expert["obs"].device)
     keys = ("obs", "actions", "next_obs", "terminations")
-    return batch._replace(**{k: torch.cat([expert[k][idx], getattr(batch, k)[n:]]) for k in keys})
-
-
-def rile_update(student: "SAC", trainer: "SAC", disc: nn.Module, rb: "ReplayBuffer", expert: dict, args,
-                state: dict, step: int) -> dict:
-    """One round of the paper's Algorithm 2 at env step `step`: student, discriminator (every
-    --disc-update-every steps), trainer, then the freeze test. `state` holds frozen_at (None, or the step from
-    which the trainer no longer learns), reward_only (covariate shift: neither trainer nor discriminator
-    learns), the freeze statistic's running parts and trainer_updates. `disc` is any discriminator with
-    prob(x) and update(expert_x, policy_x) (gail.py's here, DRAIL's in drail_disc.py)."""
-    # student: SAC on r_S = the current trainer's action on the sampled (s, a_S)
-    batch = mix_expert(rb.sample(args.batch_size), expert, args.student_expert_fraction)
-    r_s = student_reward(trainer.actor, trainer_input(*batch[:3], args.trainer_obs), args.termination_remedy)
-    metrics = student.update(batch.obs, batch.actions, batch.next_obs, r_s, batch.terminations, prefix="losses/student_")
-    metrics["reward/learned_mean"] = r_s.mean()
-    if state["reward_only"]:
-        return metrics
-    # discriminator: expert pairs (s, a) against the most recent student pairs; transitions (s, s') with --state-only
-    seen = "next_obs" if args.state_only else "actions"  # what D sees beside s
-    if step % args.disc_update_every == 0:
-        idx = torch.randint(0, len(expert["obs"]), (args.disc_batch_size,), device=expert["obs"].device)
-        policy = rb.sample(args.disc_batch_size, recent=args.disc_buffer_size)
-        expert_x = torch.cat([expert["obs"][idx], expert[seen][idx]], -1)
-        metrics |= disc.update(expert_x, torch.cat([policy.obs, getattr(policy, seen)], -1))
-    if state["frozen_at"] is not None:
-        return metrics
-    # trainer: SAC on o_T = (s, a_S) or (s, s'), its stored action a_T, r_T from the current discriminator
-    idx = rb.indices(args.trainer_batch_size, recent=args.trainer_buffer_size)
-    batch = rb.batch(idx)
-    a_t, n_expert = batch.extra, int(round(args.trainer_expert_fraction * len(batch.obs)))
-    batch = mix_expert(batch, expert, args.trainer_expert_fraction)
-    obs_t = trainer_input(*batch[:3], args.trainer_obs)
-    with torch.no_grad():
-        if n_expert:  # expert pairs were never acted on by the trainer: a fresh a_T for them
-            a_t = torch.cat([trainer.actor.sample(obs_t[:n_expert])[0], a_t[n_expert:]])
-        r_t = trainer_reward(args.trainer_reward, disc.prob(torch.cat([batch.obs, getattr(batch, seen)], -1)), a_t.squeeze(-1))
-        if args.trainer_obs == "transition":  # o_T' = (s', s''), s'' as the student went on
-            next_obs_t = torch.cat([batch.next_obs, successor_next_obs(rb, idx, batch)], -1)
-        else:  # o_T' = (s', a'_S), a'_S: the current student's
-            next_obs_t = torch.cat([batch.next_obs, student.policy(batch.next_obs)[0]], -1)
-    metrics |= trainer.update(obs_t, a_t, next_obs_t, r_t, batch.terminations, prefix="losses/trainer_")
-    metrics["reward/trainer_reward_mean"] = r_t.mean()
-    freeze_test(metrics["losses/trainer_qf_loss"], metrics["losses/trainer_qf_target_var"], args, state, step)
-    return metrics
+    batch = batch._replace(**{k: torch.cat([expert[k][idx], getattr(batch, k)[n:]]) for k in keys})
+    if trainer is not None:  # the trainer never acted on expert pairs
+        with torch.no_grad():
+            fresh = trainer.actor.sample(trainer_input(batch.obs, batch.actions, batch.next_obs, trainer_obs)[:n])[0]
+        batch = batch._replace(extra=torch.cat([fresh, batch.extra[n:]]))
+    return batch
 
 
 def freeze_test(critic_loss, target_var, args, state: dict, step: int) -> None:
@@ -440,6 +463,19 @@ def rile_state(device) -> dict:
     inf = torch.tensor(float("inf"), device=device)
     return {"frozen_at": None, "reward_only": False, "trainer_updates": 0, "critic_loss_ema": inf,
             "target_var_ema": inf.clone(), "below_since": None}
+
+
+def check_rile_args(args) -> None:
+    """What the flags rule out, as one-line errors."""
+    if args.trainer_obs == "transition" and not args.state_only:
+        raise SystemExit("error: --trainer-obs transition goes with --state-only (a discriminator on transitions)")
+    given = asdict(args)
+    for name in ("epsilon", "student_expert_fraction", "trainer_expert_fraction"):
+        if not 0.0 <= given[name] <= 1.0:
+            raise SystemExit(f"error: --{name.replace('_', '-')} must lie in [0, 1]")
+    for name in ("expert_action_noise", "student_expert_fraction", "trainer_expert_fraction"):
+        if args.state_only and given[name] > 0:
+            raise SystemExit(f"error: --{name.replace('_', '-')} needs the expert's actions, which --state-only does not use")
 # --- end shared: rile ---
 
 
@@ -678,44 +714,44 @@ class ReplayBuffer:
 # --- shared: demonstrations ---
 DEMO_KEYS = ("observations", "next_observations", "rewards", "terminations", "truncations", "episode_starts",
              "episode_lengths", "episode_returns")  # and "actions", except in state-only files
-STATE_ONLY_METHODS = "gaifo.py, bco.py, rile.py --state-only or drail_disc.py --state-only"
 
 
 def load_demonstrations(path: str, env: gym.Env, num_trajs: Optional[int] = None, state_only: bool = False) -> dict:
     """experts/<env-id>.npz (format in README), checked against `env`, cut to its first `num_trajs` episodes.
     With `state_only` the actions are dropped (a file without them loads). Each problem is one SystemExit line."""
     env_id, obs_dim, act_dim = env.spec.id, env.observation_space.shape[0], env.action_space.shape[0]
-    record = f"`python expert.py --env-id {env_id}`"
+
+    def fail(problem: str, fix: str = f"record them with `python expert.py --env-id {env_id}`"):
+        raise SystemExit(f"error: demonstrations '{path}' {problem}; {fix}")
+
     if not os.path.isfile(path):
-        raise SystemExit(f"error: no demonstrations at '{path}'; record them with {record} or pass --expert-path")
+        fail("are missing", f"record them with `python expert.py --env-id {env_id}` or pass --expert-path")
     try:
         with np.load(path, allow_pickle=False) as f:
             data = {k: f[k] for k in f.files}
         meta = json.loads(str(data.pop("metadata"))) if "metadata" in data else None
     except Exception as e:
-        raise SystemExit(f"error: demonstrations '{path}' are unreadable or corrupt ({type(e).__name__}: {e}); "
-                         f"record them again with {record}") from None
+        fail(f"are unreadable or corrupt ({type(e).__name__}: {e})")
     if meta is None:
-        raise SystemExit(f"error: '{path}' is not in this project's format (no metadata); convert it with "
-                         f"`python demos.py convert {path} --env-id {env_id}`")
+        fail("are not in this project's format (no metadata)", f"convert them with `python demos.py convert {path} "
+             f"--env-id {env_id}`")
     if missing := [k for k in DEMO_KEYS if k not in data]:
-        raise SystemExit(f"error: demonstrations '{path}' lack {missing}; record them again with expert.py")
+        fail(f"lack {missing}")
     if state_only:
         data.pop("actions", None)  # never seen by a state-only method
     elif "actions" not in data:
-        raise SystemExit(f"error: demonstrations '{path}' hold states only, and this method needs actions; "
-                         f"learn from them with {STATE_ONLY_METHODS}")
+        fail("hold states only, and this method needs actions", "record them with actions, or use a method that "
+             "imitates from states (--state-only, or the README's state-only scripts)")
     if meta.get("env_id") != env_id:
-        raise SystemExit(f"error: demonstrations '{path}' were recorded on {meta.get('env_id')}, not {env_id}; "
-                         f"pass the file for {env_id} with --expert-path")
+        fail(f"were recorded on {meta.get('env_id')}, not {env_id}", f"pass the file for {env_id} with --expert-path")
     act_shape = data["actions"].shape[1:] if "actions" in data else (act_dim,)
     if data["observations"].shape[1:] != (obs_dim,) or act_shape != (act_dim,):
-        raise SystemExit(f"error: demonstrations '{path}' have obs/act dims {data['observations'].shape[1:]}/"
-                         f"{act_shape}, {env_id} has ({obs_dim},)/({act_dim},)")
+        fail(f"have obs/act dims {data['observations'].shape[1:]}/{act_shape}, {env_id} has ({obs_dim},)/({act_dim},)",
+             f"pass the file for {env_id} with --expert-path")
     if num_trajs is not None:
         if not 1 <= num_trajs <= len(data["episode_lengths"]):
-            raise SystemExit(f"error: --num-expert-trajs {num_trajs}, but '{path}' holds "
-                             f"{len(data['episode_lengths'])} episodes")
+            fail(f"hold {len(data['episode_lengths'])} episodes, fewer than --num-expert-trajs {num_trajs}",
+                 "pass a smaller --num-expert-trajs")
         end = int(data["episode_starts"][num_trajs - 1] + data["episode_lengths"][num_trajs - 1])
         data |= {k: data[k][: num_trajs if k.startswith("episode_") else end] for k in (*DEMO_KEYS, "actions") if k in data}
     return data | {"metadata": meta}
@@ -723,16 +759,17 @@ def load_demonstrations(path: str, env: gym.Env, num_trajs: Optional[int] = None
 
 
 # --- shared: expert data ---
-def expert_tensors(demos: dict, args, action_low, action_high, device) -> dict:
-    """The expert transitions as tensors, with the noise of the noise-robustness experiment added once
-    (no "actions" from state-only demonstrations)."""
-    rng = np.random.default_rng(args.seed + 1)
+def expert_tensors(demos: dict, seed: int, device, state_noise: float = 0.0, action_noise: float = 0.0,
+                   action_low=None, action_high=None) -> dict:
+    """The expert transitions as tensors, with the noise of the noise-robustness experiment added once (actions
+    clipped to the box; no "actions" from state-only demonstrations)."""
+    rng = np.random.default_rng(seed + 1)
     obs, next_obs, actions = demos["observations"], demos["next_observations"], demos.get("actions")
-    if args.expert_state_noise > 0:
-        obs = obs + rng.normal(0, args.expert_state_noise, obs.shape).astype(np.float32)
-        next_obs = next_obs + rng.normal(0, args.expert_state_noise, next_obs.shape).astype(np.float32)
-    if getattr(args, "expert_action_noise", 0.0) > 0:  # state-only methods have no such flag
-        actions = np.clip(actions + rng.normal(0, args.expert_action_noise, actions.shape), action_low, action_high)
+    if state_noise > 0:
+        obs = obs + rng.normal(0, state_noise, obs.shape).astype(np.float32)
+        next_obs = next_obs + rng.normal(0, state_noise, next_obs.shape).astype(np.float32)
+    if action_noise > 0:
+        actions = np.clip(actions + rng.normal(0, action_noise, actions.shape), action_low, action_high)
     as_tensor = lambda x: torch.as_tensor(np.asarray(x, dtype=np.float32), device=device)
     expert = {"obs": as_tensor(obs), "next_obs": as_tensor(next_obs), "terminations": as_tensor(demos["terminations"])}
     return expert if actions is None else expert | {"actions": as_tensor(actions)}
@@ -795,31 +832,27 @@ def evaluate(act, env_id: str, num_episodes: int, seed: int, capture_video_dir: 
 
 # --- shared: run ---
 class Run:
-    """Everything around the method: the run directory (config.json, TensorBoard, results.json), evaluation
-    every --eval-freq steps, a progress line every 30 s, a checkpoint every --checkpoint-freq steps and on
-    Ctrl-C / SIGTERM, and --resume. A checkpoint holds the state_dict() of each object in `stateful` (the
-    learners with their optimisers, the replay buffer; a plain dict as it is), the RNG states and the progress."""
+    """The run's plumbing: its directory (config.json, TensorBoard, results.json with `extra` added), evaluations every
+    --eval-freq steps, checkpoints (every `checkpoint_freq` steps, 0: none, and on Ctrl-C / SIGTERM: each `stateful`
+    object's state_dict(), a plain dict as it is, the RNG states and the progress) and --resume."""
 
-    def __init__(self, args, checkpoint: Optional[dict], stateful: dict, expert_return: Optional[float], device):
-        self.args, self.stateful, self.evals, self.start_step, self.wall_offset = args, stateful, [], 0, 0.0
-        self.extra = {}  # what a script adds to results.json
-        finite = expert_return is not None and np.isfinite(expert_return)  # NaN: demonstrations without rewards
-        self.expert_return = expert_return if finite else None
-        default_name = f"{args.env_id}__{args.exp_name}__{args.seed}__{int(time.time())}"
-        self.name = checkpoint["run_name"] if checkpoint else (args.run_name or default_name)
+    def __init__(self, args, checkpoint: Optional[dict], stateful: dict, expert_return: Optional[float], device,
+                 checkpoint_freq: int = 0):
+        self.args, self.stateful, self.checkpoint_freq, self.extra = args, stateful, checkpoint_freq, {}
+        self.expert_return = expert_return if expert_return is not None and np.isfinite(expert_return) else None
+        self.evals, self.start_step, wall_time, self.sps, self.stop_signal = [], 0, 0.0, 0.0, 0
+        self.name = checkpoint["run_name"] if checkpoint else args.run_name or \
+            f"{args.env_id}__{args.exp_name}__{args.seed}__{int(time.time())}"
         self.dir = os.path.join("runs", self.name)
         os.makedirs(self.dir, exist_ok=True)
-        with open(os.path.join(self.dir, "config.json"), "w") as f:
-            json.dump(asdict(args), f, indent=1)
+        save_file(os.path.join(self.dir, "config.json"), asdict(args))
         if args.track:
             import wandb
-
             wandb.init(project=args.wandb_project_name, entity=args.wandb_entity, sync_tensorboard=True,
                        config=vars(args), name=self.name, id=self.name, resume="allow", save_code=True)
         from torch.utils.tensorboard import SummaryWriter
-
         self.writer = SummaryWriter(self.dir)
-        table = "\n".join(f"|{k}|{v}|" for k, v in vars(args).items())
+        table = "\n".join(f"|{k}|{v}|" for k, v in asdict(args).items())
         self.writer.add_text("hyperparameters", f"|param|value|\n|-|-|\n{table}")
         self.machine = machine(device)
         if checkpoint:
@@ -828,18 +861,13 @@ class Run:
                     obj.update({k: v.to(device) if torch.is_tensor(v) else v for k, v in checkpoint[name].items()})
                 else:
                     obj.load_state_dict(checkpoint[name])
-            self.evals, self.start_step, self.wall_offset = checkpoint["evals"], checkpoint["step"], checkpoint["wall_time"]
-            rng = checkpoint["rng"]
-            random.setstate(rng["python"])
-            np.random.set_state(rng["numpy"])
-            torch.set_rng_state(rng["torch"])
-            if rng["cuda"] is not None and torch.cuda.is_available():
-                torch.cuda.set_rng_state_all(rng["cuda"])
+            self.evals, self.start_step, wall_time = checkpoint["evals"], checkpoint["step"], checkpoint["wall_time"]
+            set_rng_state(checkpoint["rng"])
             print(f"resumed {self.dir} at step {self.start_step}")
-        self.stop_signal, self.sps, self.learn_steps, self.learn_time, self.last_print = 0, 0.0, 0, 0.0, 0.0
-        signal.signal(signal.SIGINT, self.on_signal)
-        signal.signal(signal.SIGTERM, self.on_signal)
-        self.start_time, self.tick = time.time(), time.perf_counter()
+        for signum in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(signum, self.on_signal)
+        self.start_time = time.time() - wall_time  # time.time() - start_time: the run's wall time, resumed or not
+        self.tick = (self.start_step, time.perf_counter())  # where SPS counts from
 
     def on_signal(self, signum, frame):
         if self.stop_signal:  # a second Ctrl-C stops at once
@@ -849,84 +877,81 @@ class Run:
 
     def log(self, metrics: dict, step: int) -> None:
         for name, value in metrics.items():
-            self.writer.add_scalar(name, float(value), step)
+            if value is not None:  # not measured
+                self.writer.add_scalar(name, float(value), step)
 
-    def end_step(self, step: int, act, status: str = "") -> None:
-        """After env step `step` (counted from 1): speed, evaluation, progress line, checkpoint."""
-        args = self.args
-        if step > getattr(args, "learning_starts", 0):  # SPS counts the steps that learn, evaluation excluded
-            self.learn_steps, self.learn_time = self.learn_steps + 1, self.learn_time + time.perf_counter() - self.tick
-            self.sps = self.learn_steps / self.learn_time
-            if step % 1000 == 1:
-                self.log({"charts/SPS": self.sps}, step - 1)
-        if step % args.eval_freq == 0 or step == args.total_timesteps:
+    def end_step(self, step: int, act) -> None:
+        """After env step `step` (counted from 1): an evaluation every --eval-freq steps, a checkpoint when due."""
+        if step % self.args.eval_freq == 0 or step == self.args.total_timesteps:
+            self.sps = (step - self.tick[0]) / (time.perf_counter() - self.tick[1])  # since the last evaluation
             self.evaluate(step, act)
-        if time.time() - self.last_print > 30 or step == args.total_timesteps:
-            self.last_print, left = time.time(), format_time((args.total_timesteps - step) / self.sps) if self.sps else "?"
-            print(f"step {step}/{args.total_timesteps} | {self.sps:.0f} SPS | eval return {self.last_eval()}{status} | "
-                  f"left {left}", flush=True)
-        checkpoint_freq = getattr(args, "checkpoint_freq", 0)
-        if self.stop_signal or (checkpoint_freq and step % checkpoint_freq == 0 and step < args.total_timesteps):
+            self.tick = (step, time.perf_counter())
+        due = self.checkpoint_freq and step % self.checkpoint_freq == 0 and step < self.args.total_timesteps
+        if self.stop_signal or due:
             self.save_checkpoint(step)
             if self.stop_signal:
                 print(f"checkpoint saved at step {step}; continue with: python {sys.argv[0]} --resume {self.dir}")
                 self.writer.close()
                 sys.exit(128 + self.stop_signal)
-        self.tick = time.perf_counter()
 
     def evaluate(self, step: int, act) -> None:
-        """--eval-episodes of the deterministic policy, logged and written to results.json."""
+        """--eval-episodes of the deterministic policy: logged, written to results.json, printed in one line."""
         returns = evaluate(act, self.args.env_id, self.args.eval_episodes, seed=self.args.seed + 100_000)
         mean, std = float(np.mean(returns)), float(np.std(returns))
         normalized = mean / self.expert_return if self.expert_return else None
         self.evals.append({"step": step, "mean": mean, "std": std, "normalized": normalized})
-        self.log({"eval/return": mean} | ({"eval/normalized_return": normalized} if normalized is not None else {}), step)
+        self.log({"eval/return": mean, "eval/normalized_return": normalized, "charts/SPS": self.sps}, step)
         self.write_results(finished=False)
-
-    def last_eval(self) -> str:
-        e = self.evals[-1] if self.evals else None
-        versus = f" = {e['normalized']:.2f} x expert {self.expert_return:.1f}" if e and e["normalized"] is not None else ""
-        return f"{e['mean']:.1f} +- {e['std']:.1f}{versus} (step {e['step']})" if e else "-"
-
-    def wall_time(self) -> float:
-        return self.wall_offset + time.time() - self.start_time
+        versus = f" = {normalized:.2f} x expert {self.expert_return:.1f}" if self.expert_return else ""
+        print(f"step {step}/{self.args.total_timesteps} | {self.sps:.0f} SPS | {(time.time() - self.start_time) / 60:.0f} "
+              f"min | eval return {mean:.1f} +- {std:.1f}{versus}", flush=True)
 
     def save_checkpoint(self, step: int) -> None:
         state = {name: dict(obj) if isinstance(obj, dict) else obj.state_dict() for name, obj in self.stateful.items()}
-        rng = {"python": random.getstate(), "numpy": np.random.get_state(), "torch": torch.get_rng_state(),
-               "cuda": torch.cuda.get_rng_state_all() if torch.cuda.is_available() else None}
-        state |= dict(step=step, evals=self.evals, wall_time=self.wall_time(), rng=rng, config=asdict(self.args),
-                      run_name=self.name)
-        torch.save(state, os.path.join(self.dir, "checkpoint.pt.tmp"))
-        os.replace(os.path.join(self.dir, "checkpoint.pt.tmp"), os.path.join(self.dir, "checkpoint.pt"))  # atomic
+        save_file(os.path.join(self.dir, "checkpoint.pt"), state | dict(step=step, evals=self.evals, rng=rng_state(),
+                  wall_time=time.time() - self.start_time, config=asdict(self.args), run_name=self.name))
 
     def write_results(self, finished: bool) -> None:
-        """results.json: the run's config, its evaluation curve and where it ran (format in README)."""
+        """results.json: the run's config, its evaluation curve and where it ran (format in docs/benchmark.md)."""
         final = self.evals[-1] if self.evals else {}
-        results = {"algo": self.args.exp_name, "env_id": self.args.env_id, "seed": self.args.seed, "finished": finished,
-                   "evals": self.evals, "final_return": final.get("mean"), "final_normalized_return": final.get("normalized"),
-                   "expert_return": self.expert_return, "wall_time_s": self.wall_time(), "sps": self.sps,
-                   "machine": self.machine, "config": asdict(self.args)} | self.extra
-        with open(os.path.join(self.dir, "results.json.tmp"), "w") as f:
-            json.dump(results, f, indent=1)
-        os.replace(os.path.join(self.dir, "results.json.tmp"), os.path.join(self.dir, "results.json"))
+        save_file(os.path.join(self.dir, "results.json"), {
+            "algo": self.args.exp_name, "env_id": self.args.env_id, "seed": self.args.seed, "finished": finished,
+            "evals": self.evals, "final_return": final.get("mean"), "final_normalized_return": final.get("normalized"),
+            "expert_return": self.expert_return, "wall_time_s": time.time() - self.start_time, "sps": self.sps,
+            "machine": self.machine, "config": asdict(self.args)} | self.extra)
 
-    def finish(self, act, models: dict, status: str = "") -> None:
+    def finish(self, act, models: dict) -> None:
         """The last checkpoint and results.json, the models (unless --no-save-model), a video (--capture-video)."""
-        args = self.args
-        if hasattr(args, "checkpoint_freq"):  # scripts without checkpoints (bc.py) have no such flag
-            self.save_checkpoint(args.total_timesteps)
+        if self.checkpoint_freq:
+            self.save_checkpoint(self.args.total_timesteps)
         self.write_results(finished=True)
-        if args.save_model:
-            for filename, content in models.items():
-                torch.save(content, os.path.join(self.dir, filename))
-            print(f"saved {', '.join(os.path.join(self.dir, filename) for filename in models)}")
-        if args.capture_video:
-            evaluate(act, args.env_id, 1, seed=args.seed + 100_000, capture_video_dir=os.path.join(self.dir, "videos"))
+        for filename, content in models.items() if self.args.save_model else ():
+            save_file(os.path.join(self.dir, filename), content)
+        if self.args.capture_video:
+            evaluate(act, self.args.env_id, 1, self.args.seed + 100_000, capture_video_dir=os.path.join(self.dir, "videos"))
         self.writer.close()
-        if self.evals:
-            print(f"done: {args.total_timesteps} steps in {format_time(self.wall_time())}, final eval return "
-                  f"{self.last_eval()}{status}")
+        print(f"done: {self.args.total_timesteps} steps in {(time.time() - self.start_time) / 60:.1f} min: {self.dir}")
+
+
+def save_file(path: str, obj) -> None:
+    """torch.save for .pt files, JSON otherwise, through a temporary file: a run killed while saving keeps the old one."""
+    if path.endswith(".pt"):
+        torch.save(obj, path + ".tmp")
+    else:
+        with open(path + ".tmp", "w") as f:
+            json.dump(obj, f, indent=1)
+    os.replace(path + ".tmp", path)
+
+
+def rng_state() -> dict:
+    return {"python": random.getstate(), "numpy": np.random.get_state(), "torch": torch.get_rng_state(),
+            "cuda": torch.cuda.get_rng_state_all() if torch.cuda.is_available() else None}
+
+
+def set_rng_state(rng: dict) -> None:
+    random.setstate(rng["python"]), np.random.set_state(rng["numpy"]), torch.set_rng_state(rng["torch"])
+    if rng["cuda"] is not None and torch.cuda.is_available():
+        torch.cuda.set_rng_state_all(rng["cuda"])
 
 
 def machine(device) -> dict:
@@ -946,14 +971,9 @@ def machine(device) -> dict:
             **{name: version(name) for name in ("torch", "numpy", "gymnasium", "mujoco")}, "git": git or None}
 
 
-def format_time(seconds: float) -> str:
-    seconds = int(seconds)
-    return f"{seconds // 3600}h{seconds % 3600 // 60:02d}m" if seconds >= 3600 else f"{seconds // 60}m{seconds % 60:02d}s"
-
-
-def resume(args):
-    """--resume: the saved checkpoint, and the saved run's config with the fields a user may change on resume
-    (total_timesteps, cuda, threads; expert.py's compile, cudagraphs) taken from the command line where given."""
+def resume(args, keep=("total_timesteps", "cuda", "threads")):
+    """--resume: the saved checkpoint, and the saved run's config with the fields in `keep` taken from the command
+    line where given there."""
     path = os.path.join(args.resume, "checkpoint.pt") if os.path.isdir(args.resume) else args.resume
     if not os.path.isfile(path):
         raise SystemExit(f"error: no checkpoint at '{path}'; pass --resume runs/<run> of a run that saved one")
@@ -961,12 +981,9 @@ def resume(args):
         checkpoint = torch.load(path, map_location="cpu", weights_only=False)
     except Exception as e:
         raise SystemExit(f"error: cannot read checkpoint '{path}' ({type(e).__name__}: {e})") from None
+    given, default = asdict(args), asdict(type(args)())
     saved = type(args)(**{f.name: checkpoint["config"][f.name] for f in fields(args) if f.name in checkpoint["config"]})
-    for name in ("total_timesteps", "cuda", "threads", "compile", "cudagraphs"):
-        if hasattr(args, name) and getattr(args, name) != getattr(type(args)(), name):
-            setattr(saved, name, getattr(args, name))
-    saved.resume = args.resume
-    return saved, checkpoint
+    return replace(saved, resume=args.resume, **{k: given[k] for k in keep if given[k] != default[k]}), checkpoint
 # --- end shared: run ---
 
 
@@ -975,11 +992,7 @@ if __name__ == "__main__":
     args, checkpoint = resume(args) if args.resume else (args, None)
     if args.disc_batch_size % 2:
         raise SystemExit("error: --disc-batch-size must be even (antithetic timestep sampling)")
-    if args.trainer_obs == "transition" and not args.state_only:
-        raise SystemExit("error: --trainer-obs transition goes with --state-only (a discriminator on transitions)")
-    for name in ("expert_action_noise", "student_expert_fraction", "trainer_expert_fraction"):
-        if args.state_only and getattr(args, name) > 0:
-            raise SystemExit(f"error: --{name.replace('_', '-')} needs the expert's actions, which --state-only does not use")
+    check_rile_args(args)
     torch.set_num_threads(args.threads)
     device = torch.device("cuda" if torch.cuda.is_available() and args.cuda else "cpu")
     seed_everything(args.seed, args.torch_deterministic)
@@ -987,7 +1000,7 @@ if __name__ == "__main__":
     obs_dim, act_dim = env.observation_space.shape[0], env.action_space.shape[0]
     low, high = env.action_space.low, env.action_space.high
     demos = load_demonstrations(args.expert_path or f"experts/{args.env_id}.npz", env, args.num_expert_trajs, args.state_only)
-    expert = expert_tensors(demos, args, low, high, device)
+    expert = expert_tensors(demos, args.seed, device, args.expert_state_noise, args.expert_action_noise, low, high)
     absorbing = args.termination_remedy == "absorbing"
     if absorbing:
         expert = absorbing_expert(expert)
@@ -999,12 +1012,7 @@ if __name__ == "__main__":
     # the diffusion discriminator and one buffer (a_T in its extra column)
     aug_dim = obs_dim + absorbing  # with absorbing states, every stored observation has the indicator column
     agent = SAC(aug_dim, act_dim, low, high, args, device, absorbing=absorbing)
-    trainer_args = dataclasses.replace(args, hidden_dim=args.trainer_hidden_dim, q_lr=args.trainer_lr,
-                                       policy_lr=args.trainer_lr, alpha=args.trainer_alpha, autotune=False,
-                                       gamma=args.trainer_gamma, tau=args.trainer_tau)
-    # the trainer treats the absorbing state as any other observation: its action there is the student's reward
-    transition = args.trainer_obs == "transition"
-    trainer = SAC(aug_dim + (aug_dim if transition else act_dim), 1, np.array([-1.0]), np.array([1.0]), trainer_args, device)
+    trainer = make_trainer(aug_dim, act_dim, args, device)
     obs_mean, obs_std = demos["observations"].mean(0), demos["observations"].std(0)
     if absorbing:  # the indicator column enters unscaled
         obs_mean, obs_std = np.append(obs_mean, 0.0), np.append(obs_std, 1.0)
@@ -1020,11 +1028,8 @@ if __name__ == "__main__":
                 "rile": state}
     if not args.run_name:  # the two variants' runs apart
         args.run_name = f"{args.env_id}__{args.exp_name}-{args.student_reward}__{args.seed}__{int(time.time())}"
-    run = Run(args, checkpoint, stateful, float(demos["episode_returns"].mean()), device)
-    s_abs, aug = absorbing_state(obs_dim), lambda s: np.append(s, 0.0) if absorbing else s  # indicator 0 for env states
-
-    def trainer_sees(s, a, s_next):  # o_T of one env step (s and s_next with the indicator where used), as trainer_input
-        return np.concatenate([s, s_next if transition else a])
+    run = Run(args, checkpoint, stateful, float(demos["episode_returns"].mean()), device,
+              checkpoint_freq=args.checkpoint_freq)
 
     # TRY NOT TO MODIFY: start the game
     obs, _ = env.reset(seed=args.seed + run.start_step)
@@ -1034,12 +1039,11 @@ if __name__ == "__main__":
         else:
             action = agent.actor.act(obs)
         next_obs, reward, terminated, truncated, info = env.step(action)
-        a_t, a_t_absorbing = np.zeros(1), np.zeros(1)
-        if rile_mode:  # the trainer acts on what the student did; after a termination, on the absorbing self-loop too
-            a_t = trainer.actor.act(trainer_sees(aug(obs), action, s_abs if absorbing and terminated else aug(next_obs)))
-            if absorbing and terminated:
-                a_t_absorbing = trainer.actor.act(trainer_sees(s_abs, np.zeros(act_dim), s_abs))
-        store(rb, obs, action, next_obs, reward, terminated, absorbing, a_t, a_t_absorbing)  # env reward: never learned from
+        a_trainer, a_trainer_absorbing = np.zeros(1), np.zeros(1)  # DRAIL-GAIL: no trainer acts
+        if rile_mode:
+            a_trainer, a_trainer_absorbing = trainer_acts(trainer, obs, action, next_obs, terminated, absorbing,
+                                                          args.trainer_obs)
+        store(rb, obs, action, next_obs, reward, terminated, absorbing, a_trainer, a_trainer_absorbing)  # env reward: unused
         obs = next_obs
         if terminated or truncated:
             episode = info["episode"]
@@ -1058,12 +1062,10 @@ if __name__ == "__main__":
                          for name, value in metrics.items()
                          if name not in ("reward/learned_std", "reward/trainer_reward_mean")},
                         global_step)
-        trainer_status = f" | trainer {'frozen' if state['frozen_at'] is not None else 'learning'}" if rile_mode else ""
-        run.end_step(global_step + 1, agent.actor.act, status=trainer_status)
+        run.end_step(global_step + 1, agent.actor.act)
 
     disc_file = {"disc": disc.state_dict(), "trainer_actor": trainer.actor.state_dict() if rile_mode else None,
                  "env_id": args.env_id, "obs_dim": obs_dim, "act_dim": act_dim, "config": asdict(args)}
     run.finish(agent.actor.act, {"actor.pt": actor_file(agent.actor, args.env_id, training_steps=args.total_timesteps),
-                                 "disc.pt": disc_file},
-               status=f", trainer frozen at step {state['frozen_at']}" if state["frozen_at"] else "")
+                                 "disc.pt": disc_file})
     env.close()

@@ -32,7 +32,7 @@ import random
 import signal
 import sys
 import time
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass, fields, replace
 from typing import Literal, NamedTuple, Optional
 
 import gymnasium as gym
@@ -467,44 +467,44 @@ class ReplayBuffer:
 # --- shared: demonstrations ---
 DEMO_KEYS = ("observations", "next_observations", "rewards", "terminations", "truncations", "episode_starts",
              "episode_lengths", "episode_returns")  # and "actions", except in state-only files
-STATE_ONLY_METHODS = "gaifo.py, bco.py, rile.py --state-only or drail_disc.py --state-only"
 
 
 def load_demonstrations(path: str, env: gym.Env, num_trajs: Optional[int] = None, state_only: bool = False) -> dict:
     """experts/<env-id>.npz (format in README), checked against `env`, cut to its first `num_trajs` episodes.
     With `state_only` the actions are dropped (a file without them loads). Each problem is one SystemExit line."""
     env_id, obs_dim, act_dim = env.spec.id, env.observation_space.shape[0], env.action_space.shape[0]
-    record = f"`python expert.py --env-id {env_id}`"
+
+    def fail(problem: str, fix: str = f"record them with `python expert.py --env-id {env_id}`"):
+        raise SystemExit(f"error: demonstrations '{path}' {problem}; {fix}")
+
     if not os.path.isfile(path):
-        raise SystemExit(f"error: no demonstrations at '{path}'; record them with {record} or pass --expert-path")
+        fail("are missing", f"record them with `python expert.py --env-id {env_id}` or pass --expert-path")
     try:
         with np.load(path, allow_pickle=False) as f:
             data = {k: f[k] for k in f.files}
         meta = json.loads(str(data.pop("metadata"))) if "metadata" in data else None
     except Exception as e:
-        raise SystemExit(f"error: demonstrations '{path}' are unreadable or corrupt ({type(e).__name__}: {e}); "
-                         f"record them again with {record}") from None
+        fail(f"are unreadable or corrupt ({type(e).__name__}: {e})")
     if meta is None:
-        raise SystemExit(f"error: '{path}' is not in this project's format (no metadata); convert it with "
-                         f"`python demos.py convert {path} --env-id {env_id}`")
+        fail("are not in this project's format (no metadata)", f"convert them with `python demos.py convert {path} "
+             f"--env-id {env_id}`")
     if missing := [k for k in DEMO_KEYS if k not in data]:
-        raise SystemExit(f"error: demonstrations '{path}' lack {missing}; record them again with expert.py")
+        fail(f"lack {missing}")
     if state_only:
         data.pop("actions", None)  # never seen by a state-only method
     elif "actions" not in data:
-        raise SystemExit(f"error: demonstrations '{path}' hold states only, and this method needs actions; "
-                         f"learn from them with {STATE_ONLY_METHODS}")
+        fail("hold states only, and this method needs actions", "record them with actions, or use a method that "
+             "imitates from states (--state-only, or the README's state-only scripts)")
     if meta.get("env_id") != env_id:
-        raise SystemExit(f"error: demonstrations '{path}' were recorded on {meta.get('env_id')}, not {env_id}; "
-                         f"pass the file for {env_id} with --expert-path")
+        fail(f"were recorded on {meta.get('env_id')}, not {env_id}", f"pass the file for {env_id} with --expert-path")
     act_shape = data["actions"].shape[1:] if "actions" in data else (act_dim,)
     if data["observations"].shape[1:] != (obs_dim,) or act_shape != (act_dim,):
-        raise SystemExit(f"error: demonstrations '{path}' have obs/act dims {data['observations'].shape[1:]}/"
-                         f"{act_shape}, {env_id} has ({obs_dim},)/({act_dim},)")
+        fail(f"have obs/act dims {data['observations'].shape[1:]}/{act_shape}, {env_id} has ({obs_dim},)/({act_dim},)",
+             f"pass the file for {env_id} with --expert-path")
     if num_trajs is not None:
         if not 1 <= num_trajs <= len(data["episode_lengths"]):
-            raise SystemExit(f"error: --num-expert-trajs {num_trajs}, but '{path}' holds "
-                             f"{len(data['episode_lengths'])} episodes")
+            fail(f"hold {len(data['episode_lengths'])} episodes, fewer than --num-expert-trajs {num_trajs}",
+                 "pass a smaller --num-expert-trajs")
         end = int(data["episode_starts"][num_trajs - 1] + data["episode_lengths"][num_trajs - 1])
         data |= {k: data[k][: num_trajs if k.startswith("episode_") else end] for k in (*DEMO_KEYS, "actions") if k in data}
     return data | {"metadata": meta}
@@ -512,16 +512,17 @@ def load_demonstrations(path: str, env: gym.Env, num_trajs: Optional[int] = None
 
 
 # --- shared: expert data ---
-def expert_tensors(demos: dict, args, action_low, action_high, device) -> dict:
-    """The expert transitions as tensors, with the noise of the noise-robustness experiment added once
-    (no "actions" from state-only demonstrations)."""
-    rng = np.random.default_rng(args.seed + 1)
+def expert_tensors(demos: dict, seed: int, device, state_noise: float = 0.0, action_noise: float = 0.0,
+                   action_low=None, action_high=None) -> dict:
+    """The expert transitions as tensors, with the noise of the noise-robustness experiment added once (actions
+    clipped to the box; no "actions" from state-only demonstrations)."""
+    rng = np.random.default_rng(seed + 1)
     obs, next_obs, actions = demos["observations"], demos["next_observations"], demos.get("actions")
-    if args.expert_state_noise > 0:
-        obs = obs + rng.normal(0, args.expert_state_noise, obs.shape).astype(np.float32)
-        next_obs = next_obs + rng.normal(0, args.expert_state_noise, next_obs.shape).astype(np.float32)
-    if getattr(args, "expert_action_noise", 0.0) > 0:  # state-only methods have no such flag
-        actions = np.clip(actions + rng.normal(0, args.expert_action_noise, actions.shape), action_low, action_high)
+    if state_noise > 0:
+        obs = obs + rng.normal(0, state_noise, obs.shape).astype(np.float32)
+        next_obs = next_obs + rng.normal(0, state_noise, next_obs.shape).astype(np.float32)
+    if action_noise > 0:
+        actions = np.clip(actions + rng.normal(0, action_noise, actions.shape), action_low, action_high)
     as_tensor = lambda x: torch.as_tensor(np.asarray(x, dtype=np.float32), device=device)
     expert = {"obs": as_tensor(obs), "next_obs": as_tensor(next_obs), "terminations": as_tensor(demos["terminations"])}
     return expert if actions is None else expert | {"actions": as_tensor(actions)}
@@ -584,31 +585,27 @@ def evaluate(act, env_id: str, num_episodes: int, seed: int, capture_video_dir: 
 
 # --- shared: run ---
 class Run:
-    """Everything around the method: the run directory (config.json, TensorBoard, results.json), evaluation
-    every --eval-freq steps, a progress line every 30 s, a checkpoint every --checkpoint-freq steps and on
-    Ctrl-C / SIGTERM, and --resume. A checkpoint holds the state_dict() of each object in `stateful` (the
-    learners with their optimisers, the replay buffer; a plain dict as it is), the RNG states and the progress."""
+    """The run's plumbing: its directory (config.json, TensorBoard, results.json with `extra` added), evaluations every
+    --eval-freq steps, checkpoints (every `checkpoint_freq` steps, 0: none, and on Ctrl-C / SIGTERM: each `stateful`
+    object's state_dict(), a plain dict as it is, the RNG states and the progress) and --resume."""
 
-    def __init__(self, args, checkpoint: Optional[dict], stateful: dict, expert_return: Optional[float], device):
-        self.args, self.stateful, self.evals, self.start_step, self.wall_offset = args, stateful, [], 0, 0.0
-        self.extra = {}  # what a script adds to results.json
-        finite = expert_return is not None and np.isfinite(expert_return)  # NaN: demonstrations without rewards
-        self.expert_return = expert_return if finite else None
-        default_name = f"{args.env_id}__{args.exp_name}__{args.seed}__{int(time.time())}"
-        self.name = checkpoint["run_name"] if checkpoint else (args.run_name or default_name)
+    def __init__(self, args, checkpoint: Optional[dict], stateful: dict, expert_return: Optional[float], device,
+                 checkpoint_freq: int = 0):
+        self.args, self.stateful, self.checkpoint_freq, self.extra = args, stateful, checkpoint_freq, {}
+        self.expert_return = expert_return if expert_return is not None and np.isfinite(expert_return) else None
+        self.evals, self.start_step, wall_time, self.sps, self.stop_signal = [], 0, 0.0, 0.0, 0
+        self.name = checkpoint["run_name"] if checkpoint else args.run_name or \
+            f"{args.env_id}__{args.exp_name}__{args.seed}__{int(time.time())}"
         self.dir = os.path.join("runs", self.name)
         os.makedirs(self.dir, exist_ok=True)
-        with open(os.path.join(self.dir, "config.json"), "w") as f:
-            json.dump(asdict(args), f, indent=1)
+        save_file(os.path.join(self.dir, "config.json"), asdict(args))
         if args.track:
             import wandb
-
             wandb.init(project=args.wandb_project_name, entity=args.wandb_entity, sync_tensorboard=True,
                        config=vars(args), name=self.name, id=self.name, resume="allow", save_code=True)
         from torch.utils.tensorboard import SummaryWriter
-
         self.writer = SummaryWriter(self.dir)
-        table = "\n".join(f"|{k}|{v}|" for k, v in vars(args).items())
+        table = "\n".join(f"|{k}|{v}|" for k, v in asdict(args).items())
         self.writer.add_text("hyperparameters", f"|param|value|\n|-|-|\n{table}")
         self.machine = machine(device)
         if checkpoint:
@@ -617,18 +614,13 @@ class Run:
                     obj.update({k: v.to(device) if torch.is_tensor(v) else v for k, v in checkpoint[name].items()})
                 else:
                     obj.load_state_dict(checkpoint[name])
-            self.evals, self.start_step, self.wall_offset = checkpoint["evals"], checkpoint["step"], checkpoint["wall_time"]
-            rng = checkpoint["rng"]
-            random.setstate(rng["python"])
-            np.random.set_state(rng["numpy"])
-            torch.set_rng_state(rng["torch"])
-            if rng["cuda"] is not None and torch.cuda.is_available():
-                torch.cuda.set_rng_state_all(rng["cuda"])
+            self.evals, self.start_step, wall_time = checkpoint["evals"], checkpoint["step"], checkpoint["wall_time"]
+            set_rng_state(checkpoint["rng"])
             print(f"resumed {self.dir} at step {self.start_step}")
-        self.stop_signal, self.sps, self.learn_steps, self.learn_time, self.last_print = 0, 0.0, 0, 0.0, 0.0
-        signal.signal(signal.SIGINT, self.on_signal)
-        signal.signal(signal.SIGTERM, self.on_signal)
-        self.start_time, self.tick = time.time(), time.perf_counter()
+        for signum in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(signum, self.on_signal)
+        self.start_time = time.time() - wall_time  # time.time() - start_time: the run's wall time, resumed or not
+        self.tick = (self.start_step, time.perf_counter())  # where SPS counts from
 
     def on_signal(self, signum, frame):
         if self.stop_signal:  # a second Ctrl-C stops at once
@@ -638,84 +630,81 @@ class Run:
 
     def log(self, metrics: dict, step: int) -> None:
         for name, value in metrics.items():
-            self.writer.add_scalar(name, float(value), step)
+            if value is not None:  # not measured
+                self.writer.add_scalar(name, float(value), step)
 
-    def end_step(self, step: int, act, status: str = "") -> None:
-        """After env step `step` (counted from 1): speed, evaluation, progress line, checkpoint."""
-        args = self.args
-        if step > getattr(args, "learning_starts", 0):  # SPS counts the steps that learn, evaluation excluded
-            self.learn_steps, self.learn_time = self.learn_steps + 1, self.learn_time + time.perf_counter() - self.tick
-            self.sps = self.learn_steps / self.learn_time
-            if step % 1000 == 1:
-                self.log({"charts/SPS": self.sps}, step - 1)
-        if step % args.eval_freq == 0 or step == args.total_timesteps:
+    def end_step(self, step: int, act) -> None:
+        """After env step `step` (counted from 1): an evaluation every --eval-freq steps, a checkpoint when due."""
+        if step % self.args.eval_freq == 0 or step == self.args.total_timesteps:
+            self.sps = (step - self.tick[0]) / (time.perf_counter() - self.tick[1])  # since the last evaluation
             self.evaluate(step, act)
-        if time.time() - self.last_print > 30 or step == args.total_timesteps:
-            self.last_print, left = time.time(), format_time((args.total_timesteps - step) / self.sps) if self.sps else "?"
-            print(f"step {step}/{args.total_timesteps} | {self.sps:.0f} SPS | eval return {self.last_eval()}{status} | "
-                  f"left {left}", flush=True)
-        checkpoint_freq = getattr(args, "checkpoint_freq", 0)
-        if self.stop_signal or (checkpoint_freq and step % checkpoint_freq == 0 and step < args.total_timesteps):
+            self.tick = (step, time.perf_counter())
+        due = self.checkpoint_freq and step % self.checkpoint_freq == 0 and step < self.args.total_timesteps
+        if self.stop_signal or due:
             self.save_checkpoint(step)
             if self.stop_signal:
                 print(f"checkpoint saved at step {step}; continue with: python {sys.argv[0]} --resume {self.dir}")
                 self.writer.close()
                 sys.exit(128 + self.stop_signal)
-        self.tick = time.perf_counter()
 
     def evaluate(self, step: int, act) -> None:
-        """--eval-episodes of the deterministic policy, logged and written to results.json."""
+        """--eval-episodes of the deterministic policy: logged, written to results.json, printed in one line."""
         returns = evaluate(act, self.args.env_id, self.args.eval_episodes, seed=self.args.seed + 100_000)
         mean, std = float(np.mean(returns)), float(np.std(returns))
         normalized = mean / self.expert_return if self.expert_return else None
         self.evals.append({"step": step, "mean": mean, "std": std, "normalized": normalized})
-        self.log({"eval/return": mean} | ({"eval/normalized_return": normalized} if normalized is not None else {}), step)
+        self.log({"eval/return": mean, "eval/normalized_return": normalized, "charts/SPS": self.sps}, step)
         self.write_results(finished=False)
-
-    def last_eval(self) -> str:
-        e = self.evals[-1] if self.evals else None
-        versus = f" = {e['normalized']:.2f} x expert {self.expert_return:.1f}" if e and e["normalized"] is not None else ""
-        return f"{e['mean']:.1f} +- {e['std']:.1f}{versus} (step {e['step']})" if e else "-"
-
-    def wall_time(self) -> float:
-        return self.wall_offset + time.time() - self.start_time
+        versus = f" = {normalized:.2f} x expert {self.expert_return:.1f}" if self.expert_return else ""
+        print(f"step {step}/{self.args.total_timesteps} | {self.sps:.0f} SPS | {(time.time() - self.start_time) / 60:.0f} "
+              f"min | eval return {mean:.1f} +- {std:.1f}{versus}", flush=True)
 
     def save_checkpoint(self, step: int) -> None:
         state = {name: dict(obj) if isinstance(obj, dict) else obj.state_dict() for name, obj in self.stateful.items()}
-        rng = {"python": random.getstate(), "numpy": np.random.get_state(), "torch": torch.get_rng_state(),
-               "cuda": torch.cuda.get_rng_state_all() if torch.cuda.is_available() else None}
-        state |= dict(step=step, evals=self.evals, wall_time=self.wall_time(), rng=rng, config=asdict(self.args),
-                      run_name=self.name)
-        torch.save(state, os.path.join(self.dir, "checkpoint.pt.tmp"))
-        os.replace(os.path.join(self.dir, "checkpoint.pt.tmp"), os.path.join(self.dir, "checkpoint.pt"))  # atomic
+        save_file(os.path.join(self.dir, "checkpoint.pt"), state | dict(step=step, evals=self.evals, rng=rng_state(),
+                  wall_time=time.time() - self.start_time, config=asdict(self.args), run_name=self.name))
 
     def write_results(self, finished: bool) -> None:
-        """results.json: the run's config, its evaluation curve and where it ran (format in README)."""
+        """results.json: the run's config, its evaluation curve and where it ran (format in docs/benchmark.md)."""
         final = self.evals[-1] if self.evals else {}
-        results = {"algo": self.args.exp_name, "env_id": self.args.env_id, "seed": self.args.seed, "finished": finished,
-                   "evals": self.evals, "final_return": final.get("mean"), "final_normalized_return": final.get("normalized"),
-                   "expert_return": self.expert_return, "wall_time_s": self.wall_time(), "sps": self.sps,
-                   "machine": self.machine, "config": asdict(self.args)} | self.extra
-        with open(os.path.join(self.dir, "results.json.tmp"), "w") as f:
-            json.dump(results, f, indent=1)
-        os.replace(os.path.join(self.dir, "results.json.tmp"), os.path.join(self.dir, "results.json"))
+        save_file(os.path.join(self.dir, "results.json"), {
+            "algo": self.args.exp_name, "env_id": self.args.env_id, "seed": self.args.seed, "finished": finished,
+            "evals": self.evals, "final_return": final.get("mean"), "final_normalized_return": final.get("normalized"),
+            "expert_return": self.expert_return, "wall_time_s": time.time() - self.start_time, "sps": self.sps,
+            "machine": self.machine, "config": asdict(self.args)} | self.extra)
 
-    def finish(self, act, models: dict, status: str = "") -> None:
+    def finish(self, act, models: dict) -> None:
         """The last checkpoint and results.json, the models (unless --no-save-model), a video (--capture-video)."""
-        args = self.args
-        if hasattr(args, "checkpoint_freq"):  # scripts without checkpoints (bc.py) have no such flag
-            self.save_checkpoint(args.total_timesteps)
+        if self.checkpoint_freq:
+            self.save_checkpoint(self.args.total_timesteps)
         self.write_results(finished=True)
-        if args.save_model:
-            for filename, content in models.items():
-                torch.save(content, os.path.join(self.dir, filename))
-            print(f"saved {', '.join(os.path.join(self.dir, filename) for filename in models)}")
-        if args.capture_video:
-            evaluate(act, args.env_id, 1, seed=args.seed + 100_000, capture_video_dir=os.path.join(self.dir, "videos"))
+        for filename, content in models.items() if self.args.save_model else ():
+            save_file(os.path.join(self.dir, filename), content)
+        if self.args.capture_video:
+            evaluate(act, self.args.env_id, 1, self.args.seed + 100_000, capture_video_dir=os.path.join(self.dir, "videos"))
         self.writer.close()
-        if self.evals:
-            print(f"done: {args.total_timesteps} steps in {format_time(self.wall_time())}, final eval return "
-                  f"{self.last_eval()}{status}")
+        print(f"done: {self.args.total_timesteps} steps in {(time.time() - self.start_time) / 60:.1f} min: {self.dir}")
+
+
+def save_file(path: str, obj) -> None:
+    """torch.save for .pt files, JSON otherwise, through a temporary file: a run killed while saving keeps the old one."""
+    if path.endswith(".pt"):
+        torch.save(obj, path + ".tmp")
+    else:
+        with open(path + ".tmp", "w") as f:
+            json.dump(obj, f, indent=1)
+    os.replace(path + ".tmp", path)
+
+
+def rng_state() -> dict:
+    return {"python": random.getstate(), "numpy": np.random.get_state(), "torch": torch.get_rng_state(),
+            "cuda": torch.cuda.get_rng_state_all() if torch.cuda.is_available() else None}
+
+
+def set_rng_state(rng: dict) -> None:
+    random.setstate(rng["python"]), np.random.set_state(rng["numpy"]), torch.set_rng_state(rng["torch"])
+    if rng["cuda"] is not None and torch.cuda.is_available():
+        torch.cuda.set_rng_state_all(rng["cuda"])
 
 
 def machine(device) -> dict:
@@ -735,14 +724,9 @@ def machine(device) -> dict:
             **{name: version(name) for name in ("torch", "numpy", "gymnasium", "mujoco")}, "git": git or None}
 
 
-def format_time(seconds: float) -> str:
-    seconds = int(seconds)
-    return f"{seconds // 3600}h{seconds % 3600 // 60:02d}m" if seconds >= 3600 else f"{seconds // 60}m{seconds % 60:02d}s"
-
-
-def resume(args):
-    """--resume: the saved checkpoint, and the saved run's config with the fields a user may change on resume
-    (total_timesteps, cuda, threads; expert.py's compile, cudagraphs) taken from the command line where given."""
+def resume(args, keep=("total_timesteps", "cuda", "threads")):
+    """--resume: the saved checkpoint, and the saved run's config with the fields in `keep` taken from the command
+    line where given there."""
     path = os.path.join(args.resume, "checkpoint.pt") if os.path.isdir(args.resume) else args.resume
     if not os.path.isfile(path):
         raise SystemExit(f"error: no checkpoint at '{path}'; pass --resume runs/<run> of a run that saved one")
@@ -750,12 +734,9 @@ def resume(args):
         checkpoint = torch.load(path, map_location="cpu", weights_only=False)
     except Exception as e:
         raise SystemExit(f"error: cannot read checkpoint '{path}' ({type(e).__name__}: {e})") from None
+    given, default = asdict(args), asdict(type(args)())
     saved = type(args)(**{f.name: checkpoint["config"][f.name] for f in fields(args) if f.name in checkpoint["config"]})
-    for name in ("total_timesteps", "cuda", "threads", "compile", "cudagraphs"):
-        if hasattr(args, name) and getattr(args, name) != getattr(type(args)(), name):
-            setattr(saved, name, getattr(args, name))
-    saved.resume = args.resume
-    return saved, checkpoint
+    return replace(saved, resume=args.resume, **{k: given[k] for k in keep if given[k] != default[k]}), checkpoint
 # --- end shared: run ---
 
 
@@ -770,7 +751,7 @@ if __name__ == "__main__":
     low, high = env.action_space.low, env.action_space.high
     demos = load_demonstrations(args.expert_path or f"experts/{args.env_id}.npz", env, args.num_expert_trajs,
                                 state_only=True)
-    expert = expert_tensors(demos, args, low, high, device)
+    expert = expert_tensors(demos, args.seed, device, args.expert_state_noise)
     absorbing = args.termination_remedy == "absorbing"
     if absorbing:
         expert = absorbing_expert(expert)
@@ -784,7 +765,8 @@ if __name__ == "__main__":
                          stats).to(device)
     rb = ReplayBuffer(aug_dim, act_dim, args.buffer_size, device)
     stateful = {"agent": agent, "disc": disc, "disc_optimizer": disc.optimizer, "replay_buffer": rb}
-    run = Run(args, checkpoint, stateful, float(demos["episode_returns"].mean()), device)
+    run = Run(args, checkpoint, stateful, float(demos["episode_returns"].mean()), device,
+              checkpoint_freq=args.checkpoint_freq)
 
     # TRY NOT TO MODIFY: start the game
     obs, _ = env.reset(seed=args.seed + run.start_step)

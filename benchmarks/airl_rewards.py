@@ -46,7 +46,7 @@ def main():
     rb.load_state_dict(ckpt["replay_buffer"])
     demos = airl.load_demonstrations(args.expert_path or os.path.join("experts", f"{args.env_id}.npz"), env,
                                      args.num_expert_trajs)
-    expert = airl.expert_tensors(demos, args, low, high, device)
+    expert = airl.expert_tensors(demos, args.seed, device, args.expert_state_noise, args.expert_action_noise, low, high)
     expert = airl.absorbing_expert(expert) if absorbing else expert
     mix = ckpt["config"].get("disc_policy_mix", 0.0)  # log pi as the logit sees it (runs older than the flag: 0)
 

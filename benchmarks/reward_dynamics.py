@@ -4,9 +4,9 @@ rile.py logs them itself (`--dynamics-freq`, runs/<run>/dynamics.json); gail.py 
 tool measures all three the same way, from outside: a run is trained in segments (`--resume` with a
 larger `--total-timesteps` each time, the scripts' own code path), and after every segment its learned
 reward (reward.pt), its actor (actor.pt) and the segment's transitions (the newest rows of the
-checkpoint's replay buffer) are kept in runs/<run>/snapshots/<step>/. `measure` then applies rile.py's
-own formulas (`rile.RewardDynamics`) to them, so that for a rile.py run with --dynamics-freq equal to the
-segment length it reproduces the run's dynamics.json.
+checkpoint's replay buffer) are kept in runs/<run>/snapshots/<step>/. `measure` then applies the formulas
+below (`RewardDynamics`, the same as rile.py's `reward_measures`) to them, so that for a rile.py run with
+--dynamics-freq equal to the segment length it reproduces the run's dynamics.json (tests/test_maze.py checks it).
 
     python benchmarks/reward_dynamics.py train gail.py --run-name hop_gail --segment-steps 10000 --segments 20 \
         -- --env-id Hopper-v4
@@ -159,6 +159,38 @@ class Snapshot:
 # ---------------------------------------------------------------- the metrics
 
 
+class RewardDynamics:
+    """The paper's reward-function dynamics, one interval at a time: RFDC, the W1 distance between the learned
+    rewards of consecutive intervals (each interval's transitions, scored at its end); FS-RFDC, the mean absolute
+    change of the learned reward on all expert pairs; CPR, the Pearson correlation of the learned and the env
+    rewards over the interval (None where undefined)."""
+
+    def __init__(self):
+        self.prev_interval, self.prev_expert, self.history = None, None, []
+
+    def step(self, step: int, interval_rewards, interval_env_rewards, expert_rewards) -> dict:
+        cpr = pearson(interval_rewards, interval_env_rewards)
+        out = {"step": step, "cpr": None if np.isnan(cpr) else cpr,
+               "rfdc": wasserstein_1d(interval_rewards, self.prev_interval) if self.prev_interval is not None else None,
+               "fs_rfdc": float(np.abs(expert_rewards - self.prev_expert).mean())
+               if self.prev_expert is not None and expert_rewards is not None else None}
+        self.prev_interval, self.prev_expert = interval_rewards, expert_rewards
+        self.history.append(out)
+        return out
+
+
+def wasserstein_1d(x: np.ndarray, y: np.ndarray) -> float:
+    """W1 between two empirical distributions of the same size: mean |sorted x - sorted y|."""
+    assert len(x) == len(y), "RFDC compares intervals of equal length"
+    return float(np.abs(np.sort(x) - np.sort(y)).mean())
+
+
+def pearson(x: np.ndarray, y: np.ndarray) -> float:
+    x, y = x - x.mean(), y - y.mean()
+    denom = np.sqrt((x * x).sum() * (y * y).sum())
+    return float((x * y).sum() / denom) if denom > 0 else float("nan")
+
+
 def expert_transitions(config: dict, snap: Snapshot) -> dict:
     """All expert transitions of the run's demonstrations, as its learner saw them (absorbing states added)."""
     import gymnasium as gym
@@ -167,18 +199,17 @@ def expert_transitions(config: dict, snap: Snapshot) -> dict:
     demos = rile.load_demonstrations(config["expert_path"] or f"experts/{config['env_id']}.npz", env,
                                      config["num_expert_trajs"])
     low, high = env.action_space.low, env.action_space.high
-    args = argparse.Namespace(seed=config["seed"], expert_state_noise=config.get("expert_state_noise", 0.0),
-                              expert_action_noise=config.get("expert_action_noise", 0.0))
-    expert = rile.expert_tensors(demos, args, low, high, torch.device("cpu"))
+    expert = rile.expert_tensors(demos, config["seed"], torch.device("cpu"), config.get("expert_state_noise", 0.0),
+                                 config.get("expert_action_noise", 0.0), low, high)
     return rile.absorbing_expert(expert) if snap.absorbing else expert
 
 
 def measure(run_dir: str) -> list:
-    """rile.py's RewardDynamics over a run's snapshots; written to runs/<run>/reward_dynamics.json."""
+    """RewardDynamics over a run's snapshots; written to runs/<run>/reward_dynamics.json."""
     steps = snapshots(run_dir)
     if not steps:
         raise SystemExit(f"error: {run_dir} has no snapshots; train it with `reward_dynamics.py train`")
-    dynamics, expert = rile.RewardDynamics(), None
+    dynamics, expert = RewardDynamics(), None
     for step in steps:
         snap = Snapshot(run_dir, step)
         expert = expert if expert is not None else expert_transitions(snap.config, snap)

@@ -27,17 +27,16 @@ def main():
     env = rile.make_env(args.env_id, args.seed)
     obs_dim, act_dim = env.observation_space.shape[0], env.action_space.shape[0]
     low, high, device = env.action_space.low, env.action_space.high, torch.device("cpu")
-    trainer_args = rile.dataclasses.replace(args, hidden_dim=args.trainer_hidden_dim, autotune=False)
-    trainer = rile.SAC(obs_dim + 1 + (obs_dim + 1 if transition else act_dim), 1, np.array([-1.0]), np.array([1.0]),
-                       trainer_args, device)
+    trainer = rile.make_trainer(obs_dim + 1, act_dim, args, device)
     trainer.load_state_dict(ckpt["trainer"])
     student = rile.SAC(obs_dim + 1, act_dim, low, high, args, device, absorbing=True)
-    student.load_state_dict(ckpt["agent"])
+    student.load_state_dict(ckpt["student"] if "student" in ckpt else ckpt["agent"])  # before issue 29: "agent"
     rb = rile.ReplayBuffer(obs_dim + 1, act_dim, args.buffer_size, device, extra_dim=1)
     rb.load_state_dict(ckpt["replay_buffer"])
     demos = rile.load_demonstrations(args.expert_path or os.path.join("experts", f"{args.env_id}.npz"), env,
                                      args.num_expert_trajs, args.state_only)
-    expert = rile.absorbing_expert(rile.expert_tensors(demos, args, low, high, device))
+    expert = rile.absorbing_expert(rile.expert_tensors(demos, args.seed, device, args.expert_state_noise,
+                                                     args.expert_action_noise, low, high))
     def r_s(obs, actions, next_obs):
         return rile.student_reward(trainer.actor, rile.trainer_input(obs, actions, next_obs, args.trainer_obs),
                                    args.termination_remedy)

@@ -24,7 +24,7 @@ def setup(monkeypatch):
     demo_next = demo_obs + np.array([1.0, 0.0], dtype=np.float32)
     demo_next[4, 1] = demo_next[9, 1] = 1.0  # true final states
     demos = {"observations": demo_obs, "next_observations": demo_next, "terminations": np.zeros(10, bool)}  # no actions
-    expert = gaifo.expert_tensors(demos, args, -np.ones(1), np.ones(1), "cpu")
+    expert = gaifo.expert_tensors(demos, args.seed, "cpu", args.expert_state_noise)
     seen = {}
     monkeypatch.setattr(disc, "update", lambda e, p: seen.update(expert_x=e, policy_x=p) or {})
     monkeypatch.setattr(agent, "update", lambda *b, prefix: seen.update(batch=b) or {})

@@ -9,6 +9,7 @@ import torch
 import torch.nn as nn
 
 import rile
+from benchmarks import reward_dynamics
 from conftest import ROOT
 
 OBS, ACT = 3, 2
@@ -24,8 +25,7 @@ def tiny_args(**kw):
 def learners(args):
     torch.manual_seed(0)
     student = rile.SAC(OBS, ACT, -np.ones(ACT), np.ones(ACT), args, "cpu")
-    trainer_args = rile.dataclasses.replace(args, hidden_dim=args.trainer_hidden_dim, alpha=args.trainer_alpha, autotune=False)
-    trainer = rile.SAC(OBS + ACT, 1, np.array([-1.0]), np.array([1.0]), trainer_args, "cpu")
+    trainer = rile.make_trainer(OBS, ACT, args, "cpu")
     disc = rile.Discriminator(OBS + ACT, args.disc_hidden_dim, args.disc_lr, args.disc_gp)
     rb = rile.ReplayBuffer(OBS, ACT, 50, "cpu", extra_dim=1)
     for i in range(20):  # obs encode the row index, so batches can be traced back to rows
@@ -214,9 +214,9 @@ def test_noise_options_change_what_they_say_and_nothing_else():
     demos = {"observations": np.zeros((50, OBS), np.float32), "next_observations": np.ones((50, OBS), np.float32),
              "actions": np.full((50, ACT), 0.9, np.float32), "terminations": np.zeros(50, bool)}
     low, high = -np.ones(ACT), np.ones(ACT)
-    clean = rile.expert_tensors(demos, tiny_args(), low, high, "cpu")
-    acted = rile.expert_tensors(demos, tiny_args(expert_action_noise=0.5), low, high, "cpu")
-    stated = rile.expert_tensors(demos, tiny_args(expert_state_noise=0.2), low, high, "cpu")
+    clean = rile.expert_tensors(demos, 1, "cpu", action_low=low, action_high=high)
+    acted = rile.expert_tensors(demos, 1, "cpu", action_noise=0.5, action_low=low, action_high=high)
+    stated = rile.expert_tensors(demos, 1, "cpu", state_noise=0.2, action_low=low, action_high=high)
     assert torch.equal(acted["obs"], clean["obs"]) and torch.equal(acted["next_obs"], clean["next_obs"])
     assert not torch.equal(acted["actions"], clean["actions"]) and acted["actions"].abs().max() <= 1.0
     assert torch.equal(stated["actions"], clean["actions"])
@@ -232,9 +232,9 @@ def test_rfdc_fs_rfdc_and_cpr_against_scipy():
     from scipy import stats
     rng = np.random.default_rng(0)
     x, y = rng.normal(size=100), rng.normal(1.0, 2.0, size=100)
-    assert rile.wasserstein_1d(x, y) == pytest.approx(stats.wasserstein_distance(x, y))
-    assert rile.pearson(x, 3 * x + y) == pytest.approx(stats.pearsonr(x, 3 * x + y)[0])
-    dyn = rile.RewardDynamics()
+    assert reward_dynamics.wasserstein_1d(x, y) == pytest.approx(stats.wasserstein_distance(x, y))
+    assert reward_dynamics.pearson(x, 3 * x + y) == pytest.approx(stats.pearsonr(x, 3 * x + y)[0])
+    dyn = reward_dynamics.RewardDynamics()
     first = dyn.step(10, x, 2 * x + 1, np.array([0.0, 1.0]))
     assert first["rfdc"] is None and first["fs_rfdc"] is None and first["cpr"] == pytest.approx(1.0)
     second = dyn.step(20, y, -y, np.array([0.5, -1.0]))

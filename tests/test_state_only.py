@@ -35,7 +35,7 @@ def test_a_file_without_actions_loads_for_state_only_methods_only(tmp_path):
     assert "actions" not in demos
     for k in ("observations", "next_observations", "terminations", "episode_lengths"):
         assert np.array_equal(demos[k], full[k])  # the first two episodes, as from the full file
-    with pytest.raises(SystemExit, match="hold states only.*gaifo.py, bco.py, rile.py --state-only"):
+    with pytest.raises(SystemExit, match="hold states only, and this method needs actions; .*--state-only"):
         gail.load_demonstrations(path, env)
 
 
@@ -44,7 +44,7 @@ def test_state_only_methods_never_see_actions_of_a_file_that_has_them():
     demos = gail.load_demonstrations(str(PENDULUM), env, state_only=True)
     assert "actions" not in demos
     args = rile.Args(state_only=True, termination_remedy="absorbing")
-    expert = rile.absorbing_expert(rile.expert_tensors(demos, args, -3.0, 3.0, "cpu"))
+    expert = rile.absorbing_expert(rile.expert_tensors(demos, args.seed, "cpu"))
     assert set(expert) == {"obs", "next_obs", "terminations"}
     assert expert["obs"].shape[1] == OBS + 2  # InvertedPendulum: 4 dims and the indicator
 
@@ -64,9 +64,7 @@ def test_a_foreign_file_is_sent_to_demos_py(tmp_path):
 def state_only_learners(trainer_obs):
     args = tiny_args(state_only=True, trainer_obs=trainer_obs, termination_remedy="none")
     student, _, _, _, expert, state = learners(args)
-    trainer_args = rile.dataclasses.replace(args, hidden_dim=args.trainer_hidden_dim, autotune=False)
-    trainer = rile.SAC(OBS + (OBS if trainer_obs == "transition" else ACT), 1, np.array([-1.0]), np.array([1.0]),
-                       trainer_args, "cpu")
+    trainer = rile.make_trainer(OBS, ACT, args, "cpu")
     disc = rile.Discriminator(2 * OBS, args.disc_hidden_dim, args.disc_lr, args.disc_gp)
     # one stored trajectory per 7 steps: obs i, next obs i + 1, except at an episode's end (next obs 1000 + i)
     rb = rile.ReplayBuffer(OBS, ACT, 50, "cpu", extra_dim=1)
