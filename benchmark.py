@@ -247,9 +247,37 @@ def load_results(results_dir: str = RESULTS_DIR):
             for env_id, algos in grouped.items()}, bad
 
 
+def normalized_score(ret: float, random_return: Optional[float], expert_return: Optional[float]) -> Optional[float]:
+    """(R - R_random) / (R_expert - R_random): 0 for uniform random actions, 1 for the demonstrations (D4RL's and
+    rliable's convention, the scripts' too); None where either is unknown or the expert is no better than random."""
+    if random_return is None or expert_return is None or not expert_return > random_return:
+        return None
+    return (ret - random_return) / (expert_return - random_return)
+
+
+def random_return_of(r: dict) -> Optional[float]:
+    """A results file's random-policy return: its own (since issue 31), else the one in the metadata of the
+    demonstrations it names (experts/<env-id>.npz by default), so that older files are re-normalised."""
+    if r.get("random_return") is not None:
+        return r["random_return"]
+    path = (r.get("config") or {}).get("expert_path") or os.path.join("experts", f"{r['env_id']}.npz")
+    path = path if os.path.isabs(path) else os.path.join(ROOT, path)
+    if path not in _RANDOM_RETURNS:
+        try:
+            with np.load(path, allow_pickle=False) as f:
+                _RANDOM_RETURNS[path] = json.loads(str(f["metadata"])).get("random_return")
+        except (OSError, KeyError, ValueError):
+            _RANDOM_RETURNS[path] = None
+    return _RANDOM_RETURNS[path]
+
+
+_RANDOM_RETURNS = {}  # demonstration file -> its random_return
+
+
 def summarize(runs: list) -> dict:
     finals = [r["final_return"] for r in runs]
-    normalized = [r["final_return"] / r["expert_return"] for r in runs if r.get("expert_return")]
+    normalized = [n for r in runs if (n := normalized_score(r["final_return"], random_return_of(r), r.get("expert_return")))
+                  is not None]
     score = normalized if len(normalized) == len(runs) else finals
     lo, hi = bootstrap_ci(score)
     return {"n": len(runs), "return": mean_se(finals), "normalized": mean_se(normalized) if normalized else None,
@@ -314,6 +342,9 @@ def plot_env(env_id: str, algos: dict, path: str) -> None:
     expert = [r["expert_return"] for runs in algos.values() for r in runs if r.get("expert_return")]
     if expert:
         ax.axhline(np.mean(expert), color="k", ls="--", lw=1, label="expert")
+    random_returns = [x for runs in algos.values() for r in runs if (x := random_return_of(r)) is not None]
+    if random_returns:
+        ax.axhline(np.mean(random_returns), color="k", ls=":", lw=1, label="random actions")
     ax.set(title=env_id, xlabel="env steps", ylabel="evaluation return (mean ± s.e. over seeds)")
     ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1))  # beside the axes, off the curves
     fig.tight_layout()
@@ -333,7 +364,8 @@ def report(results_dir: str = RESULTS_DIR, readme: Optional[str] = os.path.join(
                      + f"![{env_id} learning curves]({rel_png})\n")
     text = "\n".join(parts) or "No results yet.\n"
     text += ("\nFinal return: the last deterministic evaluation of each seed, mean ± standard error over seeds; "
-             "normalized: return / the demonstrations' mean return; IQM: interquartile mean over seeds with a "
+             "normalized: (return - random) / (expert - random), 0 for uniform random actions and 1 for the "
+             "demonstrations' mean return (D4RL's convention); IQM: interquartile mean over seeds with a "
              "95% percentile-bootstrap interval; steps: env steps, except bc.py's (gradient steps, no env "
              "interaction). Paper: the RILe paper's MuJoCo table (v2 envs, its own training length).\n")
     if bad:

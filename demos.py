@@ -1,7 +1,7 @@
 """Bring your own demonstrations: convert the formats researchers have into the project's npz.
 
     python demos.py convert SRC --env-id ENV [--out experts/ENV.npz] [--format auto] [--actions-unit env]
-    python demos.py info FILE [--check]
+    python demos.py info FILE [--check] [--add-random-return]
 
 SRC is one of (`--format auto` tells them apart by extension, content and layout):
   npz      a plain .npz of arrays with common key names: observations|obs|states, actions|acts,
@@ -28,6 +28,9 @@ How episodes are built (one function, `build_episodes`, for every format):
     as a truncation. The summary says how many rows were dropped.
   - Without rewards, rewards and returns are NaN. Without actions the file is state-only: it has no
     `actions` key, for the state-only methods (gaifo.py, bco.py, rile.py and drail_disc.py --state-only).
+
+The metadata also records the return of uniform random actions on the env (`random_return`, 10 episodes under
+the scripts' evaluation protocol), the zero of every normalized score: (R - random) / (expert - random).
 
 Before writing, the data are checked against `gym.make(ENV)`: observation and action dims, actions
 inside the action box (`--actions-unit normalized` rescales [-1, 1] actions, as IQ-Learn stores
@@ -388,6 +391,24 @@ def replay(demos: dict, env: gym.Env) -> str:
     return f"replay: {steps} steps of the first episode reproduce its {what} (max relative error {error:.1g})"
 
 
+def random_return(env_id: str, num_episodes: int = 10, seed: int = 100_000) -> float:
+    """The mean return of uniform random actions under the scripts' evaluation protocol (episode i reset with
+    seed + i, the action space seeded with seed): where a normalized score reads 0. The scripts' own
+    `random_return` gives the same number (tests/test_demos.py)."""
+    env = gym.make(env_id)
+    env.action_space.seed(seed)
+    returns = []
+    for i in range(num_episodes):
+        env.reset(seed=seed + i)
+        done, total = False, 0.0
+        while not done:
+            _, reward, terminated, truncated, _ = env.step(env.action_space.sample())
+            total, done = total + float(reward), terminated or truncated
+        returns.append(total)
+    env.close()
+    return float(np.mean(returns))
+
+
 # ---------------------------------------------------------------- writing and summary
 
 
@@ -399,6 +420,9 @@ def write(path: str, demos: dict, metadata: dict) -> None:
     try:
         with os.fdopen(fd, "wb") as f:
             np.savez_compressed(f, **demos, metadata=np.array(json.dumps(metadata)))
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)  # as open() would have made it (mkstemp makes it private)
         os.replace(tmp, path)
     finally:
         if os.path.exists(tmp):
@@ -418,6 +442,11 @@ def summary(path: str, demos: dict, meta: dict) -> str:
     else:
         lines.append(f"  return: mean {returns.mean():.1f} +- {returns.std():.1f}, min {returns.min():.1f}, "
                      f"max {returns.max():.1f}")
+    if "random_return" in meta:
+        lines.append(f"  random policy's return: {meta['random_return']:.1f} (uniform actions, 10 episodes)")
+    else:
+        lines.append("  random policy's return: not recorded (the scripts measure it on loading; "
+                     "`demos.py info FILE --add-random-return` stores it)")
     if "source" in meta:
         lines.append(f"  source: {meta['source']['format']} {meta['source']['path']}")
     lines += [f"  note: {n}" for n in meta.get("notes", [])] + [f"  check: {c}" for c in meta.get("checks", [])]
@@ -472,7 +501,7 @@ def convert(args, argv) -> None:
         "num_episodes": len(returns), "selection": "every episode of the source, in the source's order",
         "actions": "env units (the env's action box), as sent to env.step" if "actions" in demos else "none",
         "notes": notes, "checks": checks, "gymnasium_version": gym.__version__, "mujoco_version": mujoco.__version__,
-        "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+        "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"), "random_return": random_return(args.env_id),
     }
     if "source_metadata" in raw:
         metadata["source_metadata"] = raw["source_metadata"]
@@ -491,6 +520,9 @@ def info(args) -> None:
         except (gym.error.Error, ImportError) as e:
             fail(f"cannot make the file's environment '{meta.get('env_id')}' ({e})")
         meta["checks"] = check(demos, env)
+    if args.add_random_return:
+        meta["random_return"] = random_return(meta.get("env_id"))
+        write(args.file, demos, meta)
     print(summary(args.file, demos, meta))
 
 
@@ -510,6 +542,8 @@ def main(argv=None) -> None:
     p = commands.add_parser("info", help="summarise a project demonstration file")
     p.add_argument("file")
     p.add_argument("--check", action="store_true", help="also check the file against its env (dims, box, replay)")
+    p.add_argument("--add-random-return", action="store_true",
+                   help="measure the random policy's return on the file's env and store it in the file's metadata")
     args = parser.parse_args(argv[1:])
     convert(args, argv) if args.command == "convert" else info(args)
 

@@ -812,6 +812,9 @@ def load_demonstrations(path: str, env: gym.Env, num_trajs: Optional[int] = None
                  "pass a smaller --num-expert-trajs")
         end = int(data["episode_starts"][num_trajs - 1] + data["episode_lengths"][num_trajs - 1])
         data |= {k: data[k][: num_trajs if k.startswith("episode_") else end] for k in (*DEMO_KEYS, "actions") if k in data}
+    if "random_return" not in meta:  # files from before issue 31: measured now (`demos.py info --add-random-return`)
+        meta["random_return"] = random_return(env_id)
+        print(f"{path}: no random-policy return in its metadata; uniform actions return {meta['random_return']:.1f}")
     return data | {"metadata": meta}
 # --- end shared: demonstrations ---
 
@@ -885,6 +888,18 @@ def evaluate(act, env_id: str, num_episodes: int, seed: int, capture_video_dir: 
         returns.append(ep_return)
     env.close()
     return returns
+
+
+def random_return(env_id: str, num_episodes: int = 10, seed: int = 100_000) -> float:
+    """The mean return of uniform random actions under `evaluate`'s protocol: where a normalized score reads 0."""
+    space = make_env(env_id, seed).action_space
+    return float(np.mean(evaluate(lambda obs, deterministic: space.sample(), env_id, num_episodes, seed)))
+
+
+def normalized_score(ret: float, random: Optional[float], expert: Optional[float]) -> Optional[float]:
+    """(R - R_random) / (R_expert - R_random): 0 for random actions, 1 for the demonstrations (D4RL's convention);
+    None where either is unknown or the expert is no better than random."""
+    return (ret - random) / (expert - random) if random is not None and expert is not None and expert > random else None
 # --- end shared: evaluation ---
 
 
@@ -895,9 +910,10 @@ class Run:
     object's state_dict(), a plain dict as it is, the RNG states and the progress) and --resume."""
 
     def __init__(self, args, checkpoint: Optional[dict], stateful: dict, expert_return: Optional[float], device,
-                 checkpoint_freq: int = 0):
+                 checkpoint_freq: int = 0, random_return: Optional[float] = None):
         self.args, self.stateful, self.checkpoint_freq, self.extra = args, stateful, checkpoint_freq, {}
         self.expert_return = expert_return if expert_return is not None and np.isfinite(expert_return) else None
+        self.random_return = random_return  # the normalized score's 0 (the expert's return is its 1)
         self.evals, self.start_step, wall_time, self.sps, self.stop_signal = [], 0, 0.0, 0.0, 0
         self.name = checkpoint["run_name"] if checkpoint else args.run_name or \
             f"{args.env_id}__{args.exp_name}__{args.seed}__{int(time.time())}"
@@ -922,8 +938,7 @@ class Run:
             self.evals, self.start_step, wall_time = checkpoint["evals"], checkpoint["step"], checkpoint["wall_time"]
             set_rng_state(checkpoint["rng"])
             print(f"resumed {self.dir} at step {self.start_step}")
-        for signum in (signal.SIGINT, signal.SIGTERM):
-            signal.signal(signum, self.on_signal)
+        signal.signal(signal.SIGINT, self.on_signal), signal.signal(signal.SIGTERM, self.on_signal)
         self.start_time = time.time() - wall_time  # time.time() - start_time: the run's wall time, resumed or not
         self.tick = (self.start_step, time.perf_counter())  # where SPS counts from
 
@@ -956,11 +971,11 @@ class Run:
         """--eval-episodes of the deterministic policy: logged, written to results.json, printed in one line."""
         returns = evaluate(act, self.args.env_id, self.args.eval_episodes, seed=self.args.seed + 100_000)
         mean, std = float(np.mean(returns)), float(np.std(returns))
-        normalized = mean / self.expert_return if self.expert_return else None
+        normalized = normalized_score(mean, self.random_return, self.expert_return)
         self.evals.append({"step": step, "mean": mean, "std": std, "normalized": normalized})
         self.log({"eval/return": mean, "eval/normalized_return": normalized, "charts/SPS": self.sps}, step)
         self.write_results(finished=False)
-        versus = f" = {normalized:.2f} x expert {self.expert_return:.1f}" if self.expert_return else ""
+        versus = f" = {normalized:.2f} normalized (random 0, expert 1)" if normalized is not None else ""
         print(f"step {step}/{self.args.total_timesteps} | {self.sps:.0f} SPS | {(time.time() - self.start_time) / 60:.0f} "
               f"min | eval return {mean:.1f} +- {std:.1f}{versus}", flush=True)
 
@@ -975,8 +990,8 @@ class Run:
         save_file(os.path.join(self.dir, "results.json"), {
             "algo": self.args.exp_name, "env_id": self.args.env_id, "seed": self.args.seed, "finished": finished,
             "evals": self.evals, "final_return": final.get("mean"), "final_normalized_return": final.get("normalized"),
-            "expert_return": self.expert_return, "wall_time_s": time.time() - self.start_time, "sps": self.sps,
-            "machine": self.machine, "config": asdict(self.args)} | self.extra)
+            "random_return": self.random_return, "expert_return": self.expert_return, "sps": self.sps,
+            "wall_time_s": time.time() - self.start_time, "machine": self.machine, "config": asdict(self.args)} | self.extra)
 
     def finish(self, act, models: dict) -> None:
         """The last checkpoint and results.json, the models (unless --no-save-model), a video (--capture-video)."""
@@ -1078,7 +1093,7 @@ if __name__ == "__main__":
     stateful = {"student": student, "trainer": trainer, "disc": disc, "disc_optimizer": disc.optimizer,
                 "replay_buffer": rb, "rile": state, "measures": measures}
     run = Run(args, checkpoint, stateful, float(demos["episode_returns"].mean()), device,
-              checkpoint_freq=args.checkpoint_freq)
+              checkpoint_freq=args.checkpoint_freq, random_return=demos["metadata"]["random_return"])
     run.extra = {"trainer_frozen_at": state["frozen_at"], "reward_measures": measures["history"]}
 
     # TRY NOT TO MODIFY: start the game

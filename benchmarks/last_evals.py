@@ -8,8 +8,13 @@ use: the last evaluation, and a summary of the last few. This prints both per fi
 
 import argparse
 import json
+import os
+import sys
 
 import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+from benchmark import normalized_score, random_return_of  # noqa: E402
 
 
 def main():
@@ -23,16 +28,16 @@ def main():
         with open(path) as f:
             results = json.load(f)
         evals = results["evals"]
-        expert = results.get("expert_return") or float("nan")
+        score = lambda ret: normalized_score(ret, random_return_of(results), results.get("expert_return"))
+        score = score if score(0.0) is not None else lambda ret: float("nan")  # no expert or random return known
         final, median = evals[-1]["mean"], float(np.median([e["mean"] for e in evals[-cli.last:]]))
-        finals.append(final / expert)
-        medians.append(median / expert)
-        print(f"{path}: step {evals[-1]['step']}, final {final:.1f} ({final / expert:.2f} x expert), median of the last "
-              f"{min(cli.last, len(evals))} {median:.1f} ({median / expert:.2f}); all: "
+        finals.append(score(final))
+        medians.append(score(median))
+        print(f"{path}: step {evals[-1]['step']}, final {final:.1f} ({score(final):.2f} normalized), median of the "
+              f"last {min(cli.last, len(evals))} {median:.1f} ({score(median):.2f}); all: "
               + " / ".join(f"{e['mean']:.0f}" for e in evals))
-    print(f"mean over {len(finals)} files: final {np.mean(finals):.3f} x expert, median of the last (up to) {cli.last} "
-          f"{np.mean(medians):.3f} x expert")
-
+    print(f"mean over {len(finals)} files, normalized (random 0, expert 1): final {np.mean(finals):.3f}, median of the "
+          f"last (up to) {cli.last} {np.mean(medians):.3f}")
 
 if __name__ == "__main__":
     main()

@@ -1,7 +1,8 @@
 """What rile.py's learned reward paid over a run, from its results file: one row per measure (every
 --dynamics-freq steps), beside the evaluation at that step.
 
-Columns: the student's evaluation (x expert); r_S on the demonstrations' pairs, on the student's pairs of the
+Columns: the student's evaluation (normalized as the file stored it: random 0, expert 1 since issue 31, x expert
+before); r_S on the demonstrations' pairs, on the student's pairs of the
 interval, their spread, and at the absorbing state; D on both; the freeze test's statistic (critic loss
 relative to its targets' variance); FS-RFDC and CPR; whether the trainer was frozen.
 
@@ -19,7 +20,7 @@ COLUMNS = [("r_s_demos", "r_S demo"), ("r_s_student", "r_S stud"), ("r_s_spread"
 def table(results: dict) -> str:
     """The measures of one results file as a tab-separated table with a header line."""
     normalized = {e["step"]: e["normalized"] for e in results["evals"]}
-    rows = ["step\teval (x expert)\t" + "\t".join(label for _, label in COLUMNS) + "\ttrainer"]
+    rows = ["step\teval (norm.)\t" + "\t".join(label for _, label in COLUMNS) + "\ttrainer"]
     for m in results.get("reward_measures") or []:
         cells = [f"{m[key]:.3f}" if m.get(key) is not None else "-" for key, _ in COLUMNS]
         frozen = m.get("trainer_frozen_at")

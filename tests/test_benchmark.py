@@ -47,12 +47,12 @@ def test_bootstrap_interval():
 # ---------------------------------------------------------------- report
 
 
-def fake_result(algo, seed, curve, expert=None, env_id="Hopper-v4"):
+def fake_result(algo, seed, curve, expert=None, env_id="Hopper-v4", random=0.0):
     evals = [{"step": (i + 1) * 1000, "mean": v, "std": 0.0, "normalized": v / expert if expert else None}
              for i, v in enumerate(curve)]
     return {"algo": algo, "env_id": env_id, "seed": seed, "finished": True, "evals": evals, "final_return": curve[-1],
             "final_normalized_return": curve[-1] / expert if expert else None, "expert_return": expert,
-            "wall_time_s": 3600.0 * seed, "sps": 100.0, "machine": {}, "config": {}}
+            "random_return": random, "wall_time_s": 3600.0 * seed, "sps": 100.0, "machine": {}, "config": {}}
 
 
 @pytest.fixture
@@ -77,6 +77,33 @@ def test_report_table_plot_and_readme(results_dir, tmp_path):
     content = readme.read_text()
     assert "old" not in content and "| gail | 3 |" in content and content.endswith("after\n")
     assert (results_dir / "REPORT.md").read_text() == text
+
+
+def test_normalized_score_is_zero_for_random_and_one_for_the_expert():
+    # Pendulum-v1-like, rewards negative: random -1200, expert -170; a policy at -496 is 704 / 1030 of the way
+    assert benchmark.normalized_score(-496.0, -1200.0, -170.0) == pytest.approx(704.0 / 1030.0)
+    assert benchmark.normalized_score(-1200.0, -1200.0, -170.0) == 0.0
+    assert benchmark.normalized_score(-170.0, -1200.0, -170.0) == 1.0
+    # HalfCheetah-v4-like: a policy that learned nothing (-280, random -276.7) reads about 0, not 0.00 of 5035
+    assert benchmark.normalized_score(-280.0, -276.7, 5034.9) == pytest.approx(-3.3 / 5311.6)
+    assert benchmark.normalized_score(2000.0, 19.0, 3168.0) == pytest.approx(1981.0 / 3149.0)
+    assert benchmark.normalized_score(1.0, None, 10.0) is None and benchmark.normalized_score(1.0, 5.0, 5.0) is None
+    rng = np.random.default_rng(0)  # a policy worse than the expert never reads above 1, whatever the signs
+    for random, expert in rng.normal(0, 1000, (200, 2)):
+        random, expert = min(random, expert), max(random, expert) + 1e-3
+        assert benchmark.normalized_score(expert - abs(rng.normal()) - 1e-6, random, expert) < 1.0
+
+
+def test_older_results_files_are_renormalised_from_their_returns(results_dir):
+    """A file without random_return takes the one in its demonstrations' metadata (experts/Hopper-v4.npz)."""
+    old = fake_result("old", 1, [0.0, 2000.0], 3000.0)
+    del old["random_return"]
+    (results_dir / "Hopper-v4" / "old__1.json").write_text(json.dumps(old))
+    random = benchmark.random_return_of(old)
+    with np.load(ROOT / "experts/Hopper-v4.npz") as f:
+        assert random == json.loads(str(f["metadata"]))["random_return"] and 0 < random < 100
+    text = benchmark.report(str(results_dir), readme=None)
+    assert f"| old | 1 | 2000.0 | {(2000.0 - random) / (3000.0 - random):.3f} |" in text
 
 
 def test_runs_of_different_lengths_get_their_own_rows(results_dir):

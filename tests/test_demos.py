@@ -304,3 +304,48 @@ def test_info_refuses_a_file_without_metadata(episodes, tmp_path):
     src, _ = write_common_npz(tmp_path, episodes)
     with pytest.raises(SystemExit, match="not a project file .* python demos.py convert"):
         demos.main(["info", src])
+
+
+# ---------------------------------------------------------------- the normalized score's zero
+
+
+@pytest.mark.parametrize("env_id", ["InvertedPendulum-v4", "Pendulum-v1"])
+def test_random_return_is_the_scripts_evaluation_protocol(env_id):
+    """demos.py writes the scripts' own random_return (uniform actions, evaluate()'s seeds) into the metadata."""
+    import gail
+
+    value = demos.random_return(env_id)
+    assert value == gail.random_return(env_id)
+    assert (-1500 < value < -900) if env_id == "Pendulum-v1" else (0 < value < 30)  # Pendulum's rewards are negative
+
+
+def test_scripts_and_report_normalise_alike():
+    import benchmark
+    import gail
+
+    for ret, random, expert in [(-496.0, -1200.0, -170.0), (-280.0, -276.7, 5034.9), (2683.3, 19.0, 3168.0),
+                                (5.0, 5.0, 5.0), (1.0, None, 3.0), (1.0, 2.0, None)]:
+        assert gail.normalized_score(ret, random, expert) == benchmark.normalized_score(ret, random, expert)
+    assert gail.normalized_score(-496.0, -1200.0, -170.0) == pytest.approx(704 / 1030)  # not 2.91 "x expert"
+
+
+def test_a_file_without_the_random_return_gets_it_measured_on_loading(tmp_path, capsys):
+    import gail
+
+    with np.load(ROOT / "experts/InvertedPendulum-v4.npz") as f:
+        data = {k: f[k] for k in f.files}
+    meta = json.loads(str(data.pop("metadata")))
+    del meta["random_return"]
+    np.savez(tmp_path / "old.npz", **data, metadata=np.array(json.dumps(meta)))
+    loaded = gail.load_demonstrations(str(tmp_path / "old.npz"), gail.make_env("InvertedPendulum-v4", 0), 2)
+    assert loaded["metadata"]["random_return"] == gail.random_return("InvertedPendulum-v4")
+    assert "no random-policy return in its metadata" in capsys.readouterr().out
+
+
+def test_info_adds_the_random_return(tmp_path):
+    path = tmp_path / "copy.npz"
+    path.write_bytes((ROOT / "experts/InvertedPendulum-v4.npz").read_bytes())
+    out = run_script("demos.py", "info", str(path), "--add-random-return", cwd=tmp_path).stdout
+    assert "random policy's return:" in out
+    with np.load(path) as f:
+        assert json.loads(str(f["metadata"]))["random_return"] == demos.random_return("InvertedPendulum-v4")

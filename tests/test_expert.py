@@ -198,6 +198,8 @@ def test_end_to_end_run_reaches_updates_and_records_demos(run, tmp_path):
     env = expert.make_env("InvertedPendulum-v4", 0)
     demos = expert.load_demonstrations(str(tmp_path / "experts/InvertedPendulum-v4.npz"), env)
     assert len(demos["episode_lengths"]) == 2 and demos["metadata"]["expert_training_steps"] == 600
+    assert demos["metadata"]["random_return"] == expert.random_return("InvertedPendulum-v4")  # written, not measured now
+    assert "no random-policy return" not in out
     actor, _ = expert.load_actor(str(tmp_path / "experts/InvertedPendulum-v4-actor.pt"), env)
 
 

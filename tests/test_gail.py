@@ -58,7 +58,12 @@ def test_end_to_end(run, tmp_path):
     assert "GAIL reward: logit" in out
     results = json.loads((tmp_path / "runs/g/results.json").read_text())
     assert results["finished"] and [e["step"] for e in results["evals"]] == [250, 500]
-    assert results["expert_return"] == pytest.approx(1000.0) and results["evals"][-1]["normalized"] is not None
+    assert results["expert_return"] == pytest.approx(1000.0)
+    with np.load(ROOT / "experts/InvertedPendulum-v4.npz") as f:  # normalized: random actions 0, the expert 1
+        random = json.loads(str(f["metadata"]))["random_return"]
+    last = results["evals"][-1]
+    assert results["random_return"] == random
+    assert last["normalized"] == pytest.approx((last["mean"] - random) / (1000.0 - random))
     ckpt = torch.load(tmp_path / "runs/g/checkpoint.pt", weights_only=False)
     assert ckpt["disc_optimizer"]["state"] and ckpt["agent"]["q_optimizer"]["state"]
     assert ckpt["disc"]["net.0.weight"].shape[1] == 4 + 1 + 1  # (s, indicator, a) of InvertedPendulum
