@@ -87,7 +87,7 @@ class Args:
     env_id: str = "Hopper-v4"
     """the id of the gymnasium environment"""
     total_timesteps: int = 100_000
-    """gradient steps of training (named like the other scripts' budget so benchmark.py can pass it)"""
+    """gradient steps of training (named like the other scripts' budget so sweep.py can pass it)"""
     batch_size: int = 256
     """expert pairs per gradient step"""
     learning_rate: float = 3e-4
@@ -374,7 +374,7 @@ class Run:
                   wall_time=time.time() - self.start_time, config=asdict(self.args), run_name=self.name))
 
     def write_results(self, finished: bool) -> None:
-        """results.json: the run's config, its evaluation curve and where it ran (format in docs/benchmark.md)."""
+        """results.json: the run's config, its evaluation curve and where it ran (format in docs/sweeps.md)."""
         final = self.evals[-1] if self.evals else {}
         save_file(os.path.join(self.dir, "results.json"), {
             "algo": self.args.exp_name, "env_id": self.args.env_id, "seed": self.args.seed, "finished": finished,

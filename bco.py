@@ -398,7 +398,7 @@ class Run:
                   wall_time=time.time() - self.start_time, config=asdict(self.args), run_name=self.name))
 
     def write_results(self, finished: bool) -> None:
-        """results.json: the run's config, its evaluation curve and where it ran (format in docs/benchmark.md)."""
+        """results.json: the run's config, its evaluation curve and where it ran (format in docs/sweeps.md)."""
         final = self.evals[-1] if self.evals else {}
         save_file(os.path.join(self.dir, "results.json"), {
             "algo": self.args.exp_name, "env_id": self.args.env_id, "seed": self.args.seed, "finished": finished,
@@ -486,7 +486,7 @@ if __name__ == "__main__":
     expert_obs = torch.as_tensor(demos["observations"], device=device)
     expert_next_obs = torch.as_tensor(demos["next_observations"], device=device)
     post_steps = int(round(args.alpha * args.pre_demo_steps))
-    if args.total_timesteps is not None:  # benchmark.py passes every script an env-step budget
+    if args.total_timesteps is not None:  # sweep.py passes every script an env-step budget
         args.iterations = max(0, (args.total_timesteps - args.pre_demo_steps) // max(post_steps, 1))
     budget = args.pre_demo_steps + args.iterations * post_steps
     args.total_timesteps = budget if args.total_timesteps is None else args.total_timesteps  # recorded in the config

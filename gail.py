@@ -687,7 +687,7 @@ class Run:
                   wall_time=time.time() - self.start_time, config=asdict(self.args), run_name=self.name))
 
     def write_results(self, finished: bool) -> None:
-        """results.json: the run's config, its evaluation curve and where it ran (format in docs/benchmark.md)."""
+        """results.json: the run's config, its evaluation curve and where it ran (format in docs/sweeps.md)."""
         final = self.evals[-1] if self.evals else {}
         save_file(os.path.join(self.dir, "results.json"), {
             "algo": self.args.exp_name, "env_id": self.args.env_id, "seed": self.args.seed, "finished": finished,

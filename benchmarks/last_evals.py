@@ -14,7 +14,7 @@ import sys
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-from benchmark import normalized_score, random_return_of  # noqa: E402
+from sweep import normalized_score, random_return_of  # noqa: E402
 
 
 def main():

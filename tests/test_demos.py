@@ -320,12 +320,12 @@ def test_random_return_is_the_scripts_evaluation_protocol(env_id):
 
 
 def test_scripts_and_report_normalise_alike():
-    import benchmark
+    import sweep
     import gail
 
     for ret, random, expert in [(-496.0, -1200.0, -170.0), (-280.0, -276.7, 5034.9), (2683.3, 19.0, 3168.0),
                                 (5.0, 5.0, 5.0), (1.0, None, 3.0), (1.0, 2.0, None)]:
-        assert gail.normalized_score(ret, random, expert) == benchmark.normalized_score(ret, random, expert)
+        assert gail.normalized_score(ret, random, expert) == sweep.normalized_score(ret, random, expert)
     assert gail.normalized_score(-496.0, -1200.0, -170.0) == pytest.approx(704 / 1030)  # not 2.91 "x expert"
 
 

@@ -1,16 +1,16 @@
 """Multi-seed sweeps of the project's scripts that survive sessions; results tables and learning curves.
 
-    python benchmark.py --scripts rile.py gail.py --env-ids Hopper-v4 --seeds 1 2 3 --total-timesteps 200000
-    python benchmark.py --status            # which jobs are done, running, interrupted or waiting
-    python benchmark.py --report            # tables, learning curves, and the README's results section
-    python benchmark.py ... --launcher slurm --partition gpu --time 720 --cpus 4 --gpus 1
+    python sweep.py --scripts rile.py gail.py --env-ids Hopper-v4 --seeds 1 2 3 --total-timesteps 200000
+    python sweep.py --status            # which jobs are done, running, interrupted or waiting
+    python sweep.py --report            # tables, learning curves, and the README's results section
+    python sweep.py ... --launcher slurm --partition gpu --time 720 --cpus 4 --gpus 1
 
 Each job (script x env x seed) runs as its own process, `python <script> --env-id E --seed S
 --total-timesteps T --run-name bench__<E>__<algo>__<S> <extra args>`, writing to runs/<run-name>/.
 A job whose results file exists for the same --total-timesteps is skipped; a job with a checkpoint but no
 such result is resumed (so a longer sweep extends shorter runs)
 (`--resume runs/<run-name>`), so a sweep spread over several sessions simply continues: run the same
-command again. Arguments that benchmark.py does not know pass through to the scripts; give such a
+command again. Arguments that sweep.py does not know pass through to the scripts; give such a
 variant its own `--tag` so that its results do not collide with the default's.
 
 Results: each finished run's results.json (the format every script writes, see README) is copied to
@@ -88,7 +88,7 @@ def job_state(job: Job, results_dir: str = RESULTS_DIR) -> str:
                 return "done"
     except (OSError, ValueError, KeyError):
         pass
-    lock = os.path.join(job.run_dir, "benchmark.lock")
+    lock = os.path.join(job.run_dir, "sweep.lock")
     if os.path.exists(lock):
         try:
             os.kill(int(open(lock).read().split()[0]), 0)
@@ -122,7 +122,7 @@ def run_job(job: Job, results_dir: str = RESULTS_DIR) -> str:
     if results and results.get("finished") and results["config"].get("total_timesteps") == job.total_timesteps:
         return collect(job, results, job.command(), results_dir)  # finished, but its result was never copied
     os.makedirs(job.run_dir, exist_ok=True)
-    lock = os.path.join(job.run_dir, "benchmark.lock")
+    lock = os.path.join(job.run_dir, "sweep.lock")
     with open(lock, "w") as f:
         f.write(f"{os.getpid()} {os.uname().nodename}\n")
     cmd = job.command()
@@ -417,7 +417,7 @@ def main(argv=None):
     start = time.time()
     run_sweep(jobs, args)
     print_status(jobs, args.results_dir)
-    print(f"sweep took {(time.time() - start) / 60:.1f} min; `python benchmark.py --report` for tables and curves")
+    print(f"sweep took {(time.time() - start) / 60:.1f} min; `python sweep.py --report` for tables and curves")
 
 
 if __name__ == "__main__":

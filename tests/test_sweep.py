@@ -1,4 +1,4 @@
-"""benchmark.py: skipping and resuming jobs, the report's statistics, tables and curves, bad files."""
+"""sweep.py: skipping and resuming jobs, the report's statistics, tables and curves, bad files."""
 
 import json
 import os
@@ -10,7 +10,7 @@ import time
 import numpy as np
 import pytest
 
-import benchmark
+import sweep
 from conftest import ROOT
 
 TINY = ["--learning-starts", "100", "--eval-freq", "100", "--eval-episodes", "2", "--hidden-dim", "32", "--batch-size", "32",
@@ -21,26 +21,26 @@ TINY = ["--learning-starts", "100", "--eval-freq", "100", "--eval-episodes", "2"
 
 
 def test_mean_and_standard_error():
-    m, se = benchmark.mean_se([1.0, 2.0, 3.0, 4.0])
+    m, se = sweep.mean_se([1.0, 2.0, 3.0, 4.0])
     assert m == 2.5 and se == pytest.approx(np.sqrt(((1.5**2 + 0.5**2) * 2) / 3) / 2)  # s.d. 1.2910 / sqrt(4)
-    assert np.isnan(benchmark.mean_se([7.0])[1])
+    assert np.isnan(sweep.mean_se([7.0])[1])
 
 
 def test_interquartile_mean():
-    assert benchmark.iqm([4, 1, 3, 2]) == 2.5  # drops 1 and 4
-    assert benchmark.iqm([1, 2, 3, 4, 100, 7, 8, 9]) == 5.5  # middle four of eight: 3, 4, 7, 8
-    assert benchmark.iqm([1, 2, 30]) == 11.0  # fewer than four values: nothing to trim
+    assert sweep.iqm([4, 1, 3, 2]) == 2.5  # drops 1 and 4
+    assert sweep.iqm([1, 2, 3, 4, 100, 7, 8, 9]) == 5.5  # middle four of eight: 3, 4, 7, 8
+    assert sweep.iqm([1, 2, 30]) == 11.0  # fewer than four values: nothing to trim
     from scipy.stats import trim_mean
 
     x = np.random.default_rng(0).normal(size=13)
-    assert benchmark.iqm(x) == pytest.approx(trim_mean(x, 0.25))
+    assert sweep.iqm(x) == pytest.approx(trim_mean(x, 0.25))
 
 
 def test_bootstrap_interval():
-    assert benchmark.bootstrap_ci([3.0, 3.0, 3.0]) == (3.0, 3.0)
+    assert sweep.bootstrap_ci([3.0, 3.0, 3.0]) == (3.0, 3.0)
     x = [0.1, 0.5, 0.9, 0.7, 0.3]
-    lo, hi = benchmark.bootstrap_ci(x)
-    assert lo < benchmark.iqm(x) < hi and (lo, hi) == benchmark.bootstrap_ci(x)  # reproducible
+    lo, hi = sweep.bootstrap_ci(x)
+    assert lo < sweep.iqm(x) < hi and (lo, hi) == sweep.bootstrap_ci(x)  # reproducible
     assert min(x) <= lo and hi <= max(x)
 
 
@@ -67,8 +67,8 @@ def results_dir(tmp_path):
 
 def test_report_table_plot_and_readme(results_dir, tmp_path):
     readme = tmp_path / "README.md"
-    readme.write_text(f"# x\n\n{benchmark.README_START}\nold\n{benchmark.README_END}\n\nafter\n")
-    text = benchmark.report(str(results_dir), readme=str(readme))
+    readme.write_text(f"# x\n\n{sweep.README_START}\nold\n{sweep.README_END}\n\nafter\n")
+    text = sweep.report(str(results_dir), readme=str(readme))
     # gail: finals 1000, 2000, 3000 -> 2000 +- 577.4 (s.d. 1000 / sqrt 3); normalized 0.5 +- 0.144
     assert "| gail | 3 | 2000.0 ± 577.4 | 0.500 ± 0.144 | 0.500 [0.250, 0.750] | 2000 | 2.00 | 3361 |" in text
     assert "| rile | 1 | 3500.0 | 1.000 | 1.000 [1.000, 1.000] | 3000 | 1.00 | 3417 |" in text
@@ -81,17 +81,17 @@ def test_report_table_plot_and_readme(results_dir, tmp_path):
 
 def test_normalized_score_is_zero_for_random_and_one_for_the_expert():
     # Pendulum-v1-like, rewards negative: random -1200, expert -170; a policy at -496 is 704 / 1030 of the way
-    assert benchmark.normalized_score(-496.0, -1200.0, -170.0) == pytest.approx(704.0 / 1030.0)
-    assert benchmark.normalized_score(-1200.0, -1200.0, -170.0) == 0.0
-    assert benchmark.normalized_score(-170.0, -1200.0, -170.0) == 1.0
+    assert sweep.normalized_score(-496.0, -1200.0, -170.0) == pytest.approx(704.0 / 1030.0)
+    assert sweep.normalized_score(-1200.0, -1200.0, -170.0) == 0.0
+    assert sweep.normalized_score(-170.0, -1200.0, -170.0) == 1.0
     # HalfCheetah-v4-like: a policy that learned nothing (-280, random -276.7) reads about 0, not 0.00 of 5035
-    assert benchmark.normalized_score(-280.0, -276.7, 5034.9) == pytest.approx(-3.3 / 5311.6)
-    assert benchmark.normalized_score(2000.0, 19.0, 3168.0) == pytest.approx(1981.0 / 3149.0)
-    assert benchmark.normalized_score(1.0, None, 10.0) is None and benchmark.normalized_score(1.0, 5.0, 5.0) is None
+    assert sweep.normalized_score(-280.0, -276.7, 5034.9) == pytest.approx(-3.3 / 5311.6)
+    assert sweep.normalized_score(2000.0, 19.0, 3168.0) == pytest.approx(1981.0 / 3149.0)
+    assert sweep.normalized_score(1.0, None, 10.0) is None and sweep.normalized_score(1.0, 5.0, 5.0) is None
     rng = np.random.default_rng(0)  # a policy worse than the expert never reads above 1, whatever the signs
     for random, expert in rng.normal(0, 1000, (200, 2)):
         random, expert = min(random, expert), max(random, expert) + 1e-3
-        assert benchmark.normalized_score(expert - abs(rng.normal()) - 1e-6, random, expert) < 1.0
+        assert sweep.normalized_score(expert - abs(rng.normal()) - 1e-6, random, expert) < 1.0
 
 
 def test_older_results_files_are_renormalised_from_their_returns(results_dir):
@@ -99,17 +99,17 @@ def test_older_results_files_are_renormalised_from_their_returns(results_dir):
     old = fake_result("old", 1, [0.0, 2000.0], 3000.0)
     del old["random_return"]
     (results_dir / "Hopper-v4" / "old__1.json").write_text(json.dumps(old))
-    random = benchmark.random_return_of(old)
+    random = sweep.random_return_of(old)
     with np.load(ROOT / "experts/Hopper-v4.npz") as f:
         assert random == json.loads(str(f["metadata"]))["random_return"] and 0 < random < 100
-    text = benchmark.report(str(results_dir), readme=None)
+    text = sweep.report(str(results_dir), readme=None)
     assert f"| old | 1 | 2000.0 | {(2000.0 - random) / (3000.0 - random):.3f} |" in text
 
 
 def test_runs_of_different_lengths_get_their_own_rows(results_dir):
     longer = fake_result("gail", 4, [0.0, 3900.0, 4000.0], 4000.0) | {"config": {"total_timesteps": 3000}}
     (results_dir / "Hopper-v4" / "gail__4.json").write_text(json.dumps(longer))
-    text = benchmark.report(str(results_dir), readme=None)
+    text = sweep.report(str(results_dir), readme=None)
     assert "| gail (2k) | 3 | 2000.0 ± 577.4 |" in text and "| gail (3k) | 1 | 4000.0 | 1.000 |" in text
 
 
@@ -117,7 +117,7 @@ def test_bad_results_files_are_named_not_crashed_on(results_dir, capsys):
     (results_dir / "Hopper-v4" / "broken__1.json").write_text("{not json")
     (results_dir / "Hopper-v4" / "partial__1.json").write_text(json.dumps({"algo": "partial"}))
     (results_dir / "Hopper-v4" / "empty__1.json").write_text(json.dumps(fake_result("empty", 1, [1.0]) | {"evals": []}))
-    text = benchmark.report(str(results_dir), readme=None)
+    text = sweep.report(str(results_dir), readme=None)
     assert "| gail | 3 |" in text
     for name in ("broken__1.json", "partial__1.json", "empty__1.json"):
         assert name in text and name in capsys.readouterr().err or name in text
@@ -127,7 +127,7 @@ def test_bad_results_files_are_named_not_crashed_on(results_dir, capsys):
 
 
 def sweep_cmd(results, total, *extra):
-    return [sys.executable, "-W", "ignore", str(ROOT / "benchmark.py"), "--scripts", "expert.py", "--env-ids",
+    return [sys.executable, "-W", "ignore", str(ROOT / "sweep.py"), "--scripts", "expert.py", "--env-ids",
             "InvertedPendulum-v4", "--seeds", "1", "--total-timesteps", str(total), "--results-dir", str(results),
             *extra, *TINY]
 
@@ -170,7 +170,7 @@ def test_submitit_launcher_path(tmp_path, monkeypatch):
     pytest.importorskip("submitit")
     monkeypatch.chdir(tmp_path)
     results = tmp_path / "results"
-    benchmark.main(["--scripts", "expert.py", "--env-ids", "InvertedPendulum-v4", "--seeds", "2",
+    sweep.main(["--scripts", "expert.py", "--env-ids", "InvertedPendulum-v4", "--seeds", "2",
                     "--total-timesteps", "300", "--results-dir", str(results), "--launcher", "submitit-local", *TINY])
     final = json.loads((results / "InvertedPendulum-v4" / "expert__2.json").read_text())
     assert final["finished"] and final["evals"][-1]["step"] == 300 and final["seed"] == 2
@@ -178,20 +178,20 @@ def test_submitit_launcher_path(tmp_path, monkeypatch):
 
 def test_unknown_script_is_a_clear_error(capsys):
     with pytest.raises(SystemExit):
-        benchmark.main(["--scripts", "nope.py"])
+        sweep.main(["--scripts", "nope.py"])
     assert "no script 'nope.py'" in capsys.readouterr().err
 
 
 def test_a_result_of_another_length_does_not_count_as_done(tmp_path):
-    job = benchmark.Job("expert.py", "Hopper-v4", 1, 200_000, [])
+    job = sweep.Job("expert.py", "Hopper-v4", 1, 200_000, [])
     path = tmp_path / "Hopper-v4" / "expert__1.json"
     path.parent.mkdir()
     path.write_text(json.dumps({"config": {"total_timesteps": 50_000}}))
-    assert benchmark.job_state(job, str(tmp_path)) == "waiting"
+    assert sweep.job_state(job, str(tmp_path)) == "waiting"
     path.write_text(json.dumps({"config": {"total_timesteps": 200_000}}))
-    assert benchmark.job_state(job, str(tmp_path)) == "done"
+    assert sweep.job_state(job, str(tmp_path)) == "done"
     path.write_text("{broken")
-    assert benchmark.job_state(job, str(tmp_path)) == "waiting"
+    assert sweep.job_state(job, str(tmp_path)) == "waiting"
 
 
 def test_scalars_averages_each_tag_between_evaluations(tmp_path):
@@ -218,8 +218,8 @@ def test_report_says_when_rows_came_from_different_versions():
     same = {"torch": "2.13.0+cpu", "numpy": "2.4.6", "gymnasium": "1.4.0", "mujoco": "4.0.0", "cpu": "AMD EPYC",
             "cpu_capability": "AVX2"}
     runs = lambda algo, machine: [fake_result(algo, 1, [1.0]) | {"machine": machine}]
-    assert benchmark.version_note({"gail": runs("gail", same), "rile": runs("rile", same)}) == ""
-    note = benchmark.version_note({"gail": runs("gail", same), "rile": runs("rile", same | {"cpu_capability": "AVX512"}),
+    assert sweep.version_note({"gail": runs("gail", same), "rile": runs("rile", same)}) == ""
+    note = sweep.version_note({"gail": runs("gail", same), "rile": runs("rile", same | {"cpu_capability": "AVX512"}),
                                    "bc": runs("bc", {"torch": "2.13.0+cpu"})})
     assert note.startswith("Versions differ between these rows: ") and note.count("(") == 3
     assert "cpu_capability AVX512 (rile)" in note and "cpu_capability AVX2 (gail)" in note and "torch 2.13.0+cpu (bc)" in note
