@@ -486,6 +486,9 @@ if __name__ == "__main__":
     expert_obs = torch.as_tensor(demos["observations"], device=device)
     expert_next_obs = torch.as_tensor(demos["next_observations"], device=device)
     post_steps = int(round(args.alpha * args.pre_demo_steps))
+    if args.total_timesteps is not None and args.total_timesteps < args.pre_demo_steps:
+        raise SystemExit(f"error: --total-timesteps {args.total_timesteps} is below --pre-demo-steps {args.pre_demo_steps}, "
+                         "which BCO spends before its first iteration; pass a smaller --pre-demo-steps")
     if args.total_timesteps is not None:  # sweep.py passes every script an env-step budget
         args.iterations = max(0, (args.total_timesteps - args.pre_demo_steps) // max(post_steps, 1))
     budget = args.pre_demo_steps + args.iterations * post_steps

@@ -54,3 +54,10 @@ def test_end_to_end_counts_every_env_step(run, tmp_path):
     assert results["finished"] and [e["step"] for e in results["evals"]] == [600, 750, 900]
     assert [e["iteration"] for e in results["evals"]] == [0, 1, 2] and results["config"]["total_timesteps"] == 900
     assert (tmp_path / "runs/b/inverse_model.pt").exists()
+
+
+def test_a_budget_below_the_exploration_phase_is_refused(run, tmp_path):
+    """--total-timesteps 15000 with the default 50,000 exploration steps once ran 50,000 env steps and recorded 15,000."""
+    proc = run("bco.py", "--env-id", "InvertedPendulum-v4", "--total-timesteps", "500", "--pre-demo-steps", "600",
+               "--expert-path", str(ROOT / "experts/InvertedPendulum-v4.npz"), check=False)
+    assert proc.returncode != 0 and "below --pre-demo-steps 600" in proc.stderr and not (tmp_path / "runs").exists()
