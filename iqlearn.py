@@ -20,10 +20,15 @@ Implementation choices and deviations
    default). `--chi2-actions replay` takes the stored action, i.e. the rewards of the older policies
    that filled the buffer (this script's behaviour before issue 16).
 2. One Q network (the shared critic block with one head: twin-min critics diverge here), a target copy
-   updated with tau 0.005 every step, fixed alpha, actor lr 3e-5 and critic lr 3e-4. `--preset`
-   (default `auto`) takes the value variant and alpha of the IQ-Learn paper's scripts for the env
-   (Hopper and Walker2d v0 / 1e-2, HalfCheetah value / 1e-2, Ant value / 1e-3, Humanoid v0 / 1.0);
-   explicit flags override it.
+   updated with tau 0.005 every step, fixed alpha, critic lr 3e-4. `--preset auto` (default) takes the value
+   variant and alpha of the IQ-Learn paper's scripts for the MuJoCo envs it lists (Hopper and Walker2d v0 /
+   1e-2, HalfCheetah value / 1e-2, Ant value / 1e-3, Humanoid v0 / 1.0) with the actor lr of its README's
+   MuJoCo commands, 3e-5. Other envs get the actor lr of IQ-Learn's agent config, 3e-4, alpha 1e-2 and v0,
+   measured on Pendulum-v1 (no terminations, actions in [-2, 2], 10 demonstrations, 15k steps, seed 1; issue
+   32): with the MuJoCo actor lr nothing is learned in 15k steps (-1396, random actions -1346; alpha 0.1:
+   -1226; the chi^2 term at the stored actions: -1474), with 3e-4 and `value` -1096, with 3e-4 and v0 -286 (the
+   expert -111 on its demonstrations' starts, -199 on the evaluation's). `--preset none`: IQ-Learn's
+   generic configs (value, 1e-2, actor lr 3e-4). Explicit flags override either.
 3. Done semantics (`--timeout-done`): off (default), only true terminations stop bootstrapping, for
    expert and online data alike; on, time-limit truncations count as done in both, as the authors'
    code does on MuJoCo (its expert files mark the 1000th step done).
@@ -109,13 +114,14 @@ class Args:
     learning_starts: int = 1_280
     """updates start once this many transitions are stored (the policy acts from the first step)"""
     preset: Literal["auto", "none"] = "auto"
-    """auto: the IQ-Learn paper's value variant and alpha for this env (explicit flags win)"""
+    """auto: the IQ-Learn paper's settings for the MuJoCo envs it lists, measured ones elsewhere; none: IQ-Learn's
+    generic configs (header, choice 2; explicit flags win)"""
     value_loss: Optional[Literal["value", "v0"]] = None
-    """the value term: value (policy + expert states) or v0 ((1 - gamma) V on expert states); default by preset, else value"""
+    """the value term: value (policy + expert states) or v0 ((1 - gamma) V on expert states); default by preset"""
     alpha: Optional[float] = None
-    """fixed entropy temperature; default by preset, else 0.01"""
-    policy_lr: float = 3e-5
-    """the learning rate of the actor"""
+    """fixed entropy temperature; default by preset (0.01 but for Ant and Humanoid)"""
+    policy_lr: Optional[float] = None
+    """the learning rate of the actor; default by preset (3e-5 for the MuJoCo envs the paper lists, else 3e-4)"""
     q_lr: float = 3e-4
     """the learning rate of the critic"""
     chi2_alpha: float = 0.5
@@ -211,9 +217,17 @@ class IQLearn(nn.Module):
 
 
 def apply_preset(args):
-    value_loss, alpha = PRESETS.get(args.env_id.split("-")[0], ("value", 1e-2)) if args.preset == "auto" else ("value", 1e-2)
+    """The value term, alpha and actor lr the flags leave open (header, choice 2)."""
+    name = args.env_id.split("-")[0]
+    if args.preset == "none":
+        value_loss, alpha, policy_lr = "value", 1e-2, 3e-4  # IQ-Learn's agent and method configs
+    elif name in PRESETS:
+        value_loss, alpha, policy_lr = *PRESETS[name], 3e-5  # its paper's MuJoCo scripts
+    else:
+        value_loss, alpha, policy_lr = "v0", 1e-2, 3e-4  # measured on Pendulum-v1
     args.value_loss = args.value_loss or value_loss
     args.alpha = alpha if args.alpha is None else args.alpha
+    args.policy_lr = policy_lr if args.policy_lr is None else args.policy_lr
     return args
 
 

@@ -20,7 +20,7 @@ def constant_q(q, value):
 
 
 def agent_with(monkeypatch, value_loss):
-    args = iqlearn.Args(hidden_dim=8, value_loss=value_loss, alpha=0.1, gamma=0.9)
+    args = iqlearn.apply_preset(iqlearn.Args(hidden_dim=8, value_loss=value_loss, alpha=0.1, gamma=0.9))
     agent = iqlearn.IQLearn(2, 1, -np.ones(1), np.ones(1), args, "cpu")
     constant_q(agent.q, 2.0)  # Q(s, a) = 2
     constant_q(agent.q_target, 3.0)  # Q_targ(s, a) = 3
@@ -65,7 +65,8 @@ class ActionQ(torch.nn.Module):
 @pytest.mark.parametrize("chi2_actions", ["policy", "replay"])
 def test_chi2_on_policy_states_takes_the_current_policys_action(monkeypatch, chi2_actions):
     """The authors' online regulariser: on policy states r = Q(s, a~pi(s)) - y, not Q(s, a_replay) - y."""
-    args = iqlearn.Args(hidden_dim=8, value_loss="value", alpha=0.1, gamma=0.9, chi2_actions=chi2_actions)
+    args = iqlearn.apply_preset(iqlearn.Args(hidden_dim=8, value_loss="value", alpha=0.1, gamma=0.9,
+                                             chi2_actions=chi2_actions))
     agent = iqlearn.IQLearn(2, 1, -np.ones(1), np.ones(1), args, "cpu")
     agent.q, agent.q_target = ActionQ(2.0), ActionQ(3.0)
     pi_action = 0.5  # the current policy's action everywhere, log pi = -1
@@ -92,14 +93,15 @@ def test_actor_loss_uses_both_batches_and_leaves_q_alone(monkeypatch):
     loss = agent.actor_loss(torch.zeros(6, 2))
     assert loss.item() == pytest.approx(0.1 * -1.0 - 2.0)
     torch.manual_seed(0)
-    fresh = iqlearn.IQLearn(2, 1, -np.ones(1), np.ones(1), iqlearn.Args(hidden_dim=8, value_loss="v0", alpha=0.1), "cpu")
+    fresh_args = iqlearn.apply_preset(iqlearn.Args(hidden_dim=8, value_loss="v0", alpha=0.1))
+    fresh = iqlearn.IQLearn(2, 1, -np.ones(1), np.ones(1), fresh_args, "cpu")
     fresh.actor_loss(torch.randn(5, 2)).backward()
     assert all(p.grad is None for p in fresh.q.parameters())
 
 
 def test_update_steps_the_critic_actor_and_target():
     torch.manual_seed(0)
-    args = iqlearn.Args(hidden_dim=8, value_loss="value", alpha=0.01)
+    args = iqlearn.apply_preset(iqlearn.Args(hidden_dim=8, value_loss="value", alpha=0.01))
     agent = iqlearn.IQLearn(2, 1, -np.ones(1), np.ones(1), args, "cpu")
     before = [p.clone() for p in agent.q_target.parameters()]
     policy = iqlearn.Batch(torch.randn(4, 2), torch.rand(4, 1), torch.randn(4, 2), torch.zeros(4), torch.zeros(4),
@@ -117,11 +119,15 @@ def test_update_steps_the_critic_actor_and_target():
 
 def test_presets():
     a = iqlearn.apply_preset(iqlearn.Args(env_id="Hopper-v4"))
-    assert (a.value_loss, a.alpha) == ("v0", 1e-2)
+    assert (a.value_loss, a.alpha, a.policy_lr) == ("v0", 1e-2, 3e-5)  # as before issue 32: Hopper's runs stand
     a = iqlearn.apply_preset(iqlearn.Args(env_id="HalfCheetah-v4", alpha=0.5))
-    assert (a.value_loss, a.alpha) == ("value", 0.5)  # explicit flags win
+    assert (a.value_loss, a.alpha, a.policy_lr) == ("value", 0.5, 3e-5)  # explicit flags win
     a = iqlearn.apply_preset(iqlearn.Args(env_id="Humanoid-v4", preset="none"))
-    assert (a.value_loss, a.alpha) == ("value", 1e-2)
+    assert (a.value_loss, a.alpha, a.policy_lr) == ("value", 1e-2, 3e-4)  # IQ-Learn's generic configs
+    a = iqlearn.apply_preset(iqlearn.Args(env_id="Pendulum-v1"))
+    assert (a.value_loss, a.alpha, a.policy_lr) == ("v0", 1e-2, 3e-4)  # an env its paper does not list
+    a = iqlearn.apply_preset(iqlearn.Args(env_id="Pendulum-v1", policy_lr=1e-3, value_loss="value"))
+    assert (a.value_loss, a.policy_lr) == ("value", 1e-3)
 
 
 @pytest.mark.parametrize("timeout_done", [False, True])
