@@ -22,7 +22,7 @@ Implementation choices and deviations
    `--disc-normalize` and `--disc-update-every` as in rile.py.
 4. SAC: the shared block of expert.py with the paper's GAIL column, tau 0.01, except the temperature: tuned
    towards -|A| by default (`--no-autotune`: the paper's fixed 0.2, with which HalfCheetah-v4 learned nothing
-   in 3 seeds at 200k; tuned: 0.98).
+   in 3 seeds at 200k; tuned: 0.98 x expert, one seed).
 5. Noise-robustness options as in rile.py: Gaussian noise on the expert's actions or states.
 6. Termination bias (rile.py's `--termination-remedy`): `none` keeps terminations terminal, which with
    the default softplus reward already pays the agent to stay alive; `absorbing` adds DAC's absorbing

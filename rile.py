@@ -51,7 +51,7 @@ Implementation choices and deviations
    The trainer's temperature is fixed at 0.2 (the paper's table); the student's is tuned towards -|A| by
    default (`--no-autotune`: the paper's fixed 0.2). With r_S in [-1, 1], alpha 0.2 pays more for entropy
    (about 0.8 a step on HalfCheetah-v4) than imitation can: nothing learned in 40k steps with an informative D,
-   0.75 x expert at 50k with the temperature tuned (gail.py: 0.00 and 0.98 at 200k).
+   0.75 x expert at 50k with the temperature tuned (gail.py: 0.00 and 0.98 x expert at 200k).
 8. Experiments of the paper, as flags: `--trainer-reward` (six rewards of the ablation);
    `--expert-action-noise` / `--expert-state-noise` (Gaussian noise added once to the loaded
    demonstrations, actions clipped to the box); `--reward-from runs/<run>/reward.pt` (covariate shift:
