@@ -4,72 +4,45 @@ Paper: Albaba, Christen, Langerak, Gebhardt, Hilliges, Black, "RILe: Reinforced 
 https://arxiv.org/abs/2406.08472 (no official code is public; this file follows the paper's text).
 
 Three learners train together. A discriminator D(s, a) tells expert pairs (label 1) from the student's.
-A *trainer*, itself a SAC agent, observes the student's state-action pair o_T = concat(s, a_S) and
-acts with one scalar a_T in [-1, 1]; its reward (default "exp-difference") is exp(-|(2D - 1) - a_T|),
-so it learns to output v(D) = 2D - 1 and keeps adapting as D and the student change. The *student*,
-a SAC agent on the environment, is rewarded with the trainer's action: r_S = a_T. Unlike GAIL, the
-student's reward is a learned policy that can look ahead (the trainer has its own value function).
+A *trainer*, itself a SAC agent, observes the student's pair o_T = (s, a_S) and acts with one scalar
+a_T in [-1, 1], rewarded (default "exp-difference") with exp(-|(2D - 1) - a_T|): it learns to output
+v(D) = 2D - 1 and keeps adapting as D and the student change. The *student*, a SAC agent on the env, is
+rewarded with the trainer's action, r_S = a_T: a learned reward that can look ahead (the trainer has its own
+value function). `diff gail.py rile.py` shows what RILe adds to GAIL; the runs behind each choice below are
+in docs/rile.md and docs/reward-that-teaches.md.
 
 Implementation choices and deviations
-1. Rewards are never stored. For every sampled student batch, r_S is the current trainer's
-   deterministic action tanh(mean) on (s, a_S); for every trainer batch, r_T comes from the current D.
-2. The trainer's transition is (concat(s, a_S), a_T, concat(s', a'_S)). a_T is sampled from the
-   trainer when the student acts and stored. a'_S is a fresh sample from the *current* student at s'
-   (not the action the student later took there): the trainer's value should describe the student it
-   is rewarding now, as SAC's own target uses a' ~ pi(s'), and a stored next action may come from an
-   older student or from an epsilon-random step. Its episode ends where the student's does.
-3. The trainer's and the discriminator's small buffers (16,384 each by default) are windows over the
-   most recent transitions of the student's buffer: the same as FIFO buffers of that size, no copies.
-4. Discriminator: 64-64 tanh MLP on concat(s, a), logit "expert is high", BCE (expert = 1) on balanced
-   batches, lr 3e-5, 32 + 32 pairs, one update per env step (the paper's), plus a gradient penalty on random
-   interpolates of expert and student pairs. The paper gives its weight (1), not its form. DAC's one-centred
-   form lets D reach its floor on the student's pairs (HalfCheetah-v4: 0.03 by 20k), where v = 2D - 1 is flat
-   and the trainer, which learns to output v, has nothing to pass on: the paper's mechanism stops. Default
-   (measured, docs/reward-that-teaches.md): zero-centred (Mescheder et al. 2018), weight 3, which kept D at
-   0.78-0.84 / 0.18-0.23 on HalfCheetah and 0.55-0.59 / 0.42-0.45 on Hopper over 50k steps (weight 1 left
-   HalfCheetah's near its floor, weight 10 made Hopper's flat). The paper's D: `--disc-gp-center 1 --disc-gp
-   1`; also `--disc-normalize` (inputs standardised by the demonstrations' statistics) and
-   `--disc-update-every`. gail.py shares the block and these defaults, so the comparison stays fair.
-5. Freezing (the paper: freeze the trainer "once its critic network converges", threshold 0.1, so that the
-   student is not confused "in the later stages of training"; it names no test). Convergence is read from a
-   moving average (0.99) of the trainer's critic loss relative to the variance of its TD targets: the share of
-   what the critic must predict that it still gets wrong. A raw loss under 0.1 is met by any critic whose
-   targets are nearly flat (a trainer that sees only pairs D already rejects): measured, it fired at 15k of
-   Hopper-v4's 200k steps on a reward that never moved again. The test must hold for
-   `--trainer-freeze-window` 10k steps and never passes before `--trainer-freeze-after` (half the run), so the
-   freeze comes midway or later, as in the paper's figures. The earlier rule: `--trainer-freeze-stat loss
-   --trainer-freeze-window 0 --trainer-freeze-after 0`; `--no-trainer-freeze` turns it off. The discriminator
-   keeps training after the freeze (its outputs stay logged); only the trainer stops.
-6. Termination bias (the paper is silent): r_S = a_T can be negative, which pays the student to end
-   episodes early on Hopper, Walker2d and Humanoid. `--termination-remedy none` is the paper-literal
-   reward; `survival` rewards the student with (1 + a_T) / 2 in [0, 1] instead, the same ordering with
-   a non-negative sign; `absorbing` (the default: best of the three on Hopper-v4, see the README) keeps
-   r_S = a_T and adds DAC's absorbing states to the student's and the expert's data alike: a
-   termination leads to an absorbing state that loops to itself, whose reward the trainer learns from
-   D like any other pair's (see `store`; the trainer's transitions follow the student's).
-7. Epsilon-greedy (`--epsilon`, 0.2): with that probability the student takes a uniform random action.
-   The trainer's temperature is fixed at 0.2 (the paper's table); the student's is tuned towards -|A| by
-   default (`--no-autotune`: the paper's fixed 0.2). With r_S in [-1, 1], alpha 0.2 pays more for entropy
-   (about 0.8 a step on HalfCheetah-v4) than imitation can: nothing learned in 40k steps with an informative D,
-   0.75 x expert at 50k with the temperature tuned (gail.py: 0.00 and 0.98 x expert at 200k).
-8. Experiments of the paper, as flags: `--trainer-reward` (six rewards of the ablation);
-   `--expert-action-noise` / `--expert-state-noise` (Gaussian noise added once to the loaded
-   demonstrations, actions clipped to the box); `--reward-from runs/<run>/reward.pt` (covariate shift:
-   a fresh student against a frozen saved trainer, with `--student-action-noise` added to the actions
-   it executes during training); `--student-expert-fraction` / `--trainer-expert-fraction` (that share of
-   every sampled batch is expert pairs, which in expectation is that share of the buffer; expert pairs
-   in the trainer's batch get a fresh a_T from the trainer); reward-function dynamics every
-   `--dynamics-freq` steps (RFDC, FS-RFDC, CPR, with what r_S and D pay; see "Logged metrics").
-9. From states only (`--state-only`, the regime of the paper's LocoMuJoCo results): the demonstrations'
-   actions are dropped on loading (a file without them loads) and D scores transitions (s, s') as in
-   GAIfO, the expert's and the student's alike. The trainer still observes (s, a_S) by default: under
-   deterministic dynamics s' = f(s, a_S), so D(s, s') is a function of what it sees, and its next
-   observation (s', a'_S) stays a fresh sample from the current student (choice 2). `--trainer-obs
-   transition` makes it observe (s, s') instead; its next observation (s', s'') then has to come from
-   the step the student took next, as stored (an older student's; s' itself after a time limit).
-   On Hopper-v4 the two ended alike (0.87 and 0.86 x expert at 200k, one seed each; README).
-   Expert action noise and the expert fractions need expert actions and are refused; FS-RFDC needs the
-   trainer's reward on expert data and is not logged with the (s, a_S) trainer.
+1. Rewards are never stored: r_S is the current trainer's deterministic action on every sampled student
+   batch, r_T comes from the current D on every trainer batch.
+2. The trainer's transition is (o_T, a_T, o_T'): a_T is sampled when the student acts and stored; o_T' =
+   (s', a'_S) with a'_S a fresh sample of the *current* student, as SAC's own target uses a' ~ pi(s'): the
+   trainer's value should describe the student it rewards now. Its episode ends where the student's does.
+3. The trainer's and D's buffers (16,384 each) are windows over the newest transitions of the student's.
+4. Discriminator (gail.py's block and defaults): 64-64 tanh, BCE, lr 3e-5, 32 + 32 pairs, one update per env
+   step, and a gradient penalty whose weight the paper gives (1) but not its form. DAC's one-centred form lets
+   D reach its floor on the student's pairs, where v = 2D - 1 is flat and the trainer has nothing to pass on.
+   Default: zero-centred (Mescheder et al. 2018), weight 3. The paper's: `--disc-gp-center 1 --disc-gp 1`;
+   also `--disc-normalize` (inputs standardised by the demonstrations' statistics) and `--disc-update-every`.
+5. Freezing: the paper freezes the trainer "once its critic network converges" (threshold 0.1), so that the
+   student is not confused "in the later stages of training", and names no test. Ours: a moving average
+   (0.99) of the critic's TD loss relative to the variance of its targets (a raw loss is met by any flat
+   target) stays below the threshold for `--trainer-freeze-window` steps, never before
+   `--trainer-freeze-after` (half the run). The earlier rule: `--trainer-freeze-stat loss
+   --trainer-freeze-window 0 --trainer-freeze-after 0`; `--no-trainer-freeze` turns it off. D keeps training.
+6. Termination bias (the paper is silent): r_S = a_T can be negative, which pays the student to end episodes
+   early. `--termination-remedy none` is the paper-literal reward, `survival` pays (1 + a_T) / 2, `absorbing`
+   (default) adds DAC's absorbing states to the student's and the expert's data alike: a termination leads to
+   a self-looping state whose reward the trainer learns from D like any other pair's (see `store`).
+7. Epsilon-greedy (`--epsilon` 0.2). The trainer's temperature is the paper's fixed 0.2; the student's is tuned
+   towards -|A| (`--no-autotune`: 0.2, which pays more for entropy than r_S in [-1, 1] pays for imitation).
+8. The paper's experiments as flags: `--trainer-reward` (the ablation's six rewards); `--expert-action-noise` /
+   `--expert-state-noise` (noise added once to the demonstrations); `--reward-from runs/<run>/reward.pt` with
+   `--student-action-noise` (covariate shift: a fresh student against a saved, frozen trainer);
+   `--student-expert-fraction` / `--trainer-expert-fraction` (that share of each batch is expert pairs, with a
+   fresh a_T in the trainer's); the reward measures every `--dynamics-freq` steps (below).
+9. From states only (`--state-only`, the paper's LocoMuJoCo regime): D scores (s, s') as in GAIfO. The trainer
+   still observes (s, a_S), of which s' = f(s, a_S) is a function; `--trainer-obs transition` makes it observe
+   (s, s'), with (s', s'') as stored next. Options that need expert actions are refused.
 
 Logged metrics: charts/episodic_return, charts/SPS, eval/return, eval/normalized_return,
 losses/{student,trainer}_{qf_loss,qf_values,qf_target_var,actor_loss,alpha_loss,alpha,entropy}, losses/disc_loss,
