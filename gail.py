@@ -134,9 +134,9 @@ class Args:
     the paper's; header, choice 3)"""
     disc_update_every: int = 1
     """one discriminator update every this many env steps (the paper's "1 update per round")"""
-    disc_normalize: bool = False
-    """standardise the discriminator's inputs by the demonstrations' mean and std (its gradient penalty then acts
-    in those units)"""
+    disc_normalize: Literal["none", "demos", "pooled"] = "none"
+    """standardise the discriminator's inputs (its gradient penalty then acts in those units): by the demonstrations'
+    mean and std, or by the running statistics of its training batches, expert and agent pairs pooled"""
 
     # Imitation arguments
     expert_path: Optional[str] = None
@@ -154,11 +154,12 @@ class Args:
 class Discriminator(nn.Module):
     """D(x) = sigmoid(logit(x)), expert = 1, trained with BCE and a gradient penalty on random interpolates of
     expert and policy inputs: one-centred (gp_center 1, DAC's) or zero-centred (gp_center 0). Inputs are
-    standardised by `shift` and `scale` (the demonstrations' statistics, `input_stats`; none by default), and the
-    penalty acts in those units."""
+    standardised, (x - shift) / scale, and the penalty acts in those units: none by default; fixed `stats` (the
+    demonstrations', `input_stats`); or `pooled`: the running mean and variance of every training batch, expert
+    and policy inputs together, so that what separates the two is a few units whatever the env's scale."""
 
     def __init__(self, in_dim: int, hidden_dim: int, lr: float, gp_weight: float, gp_center: float = 1.0,
-                 stats: Optional[tuple] = None):
+                 stats: Optional[tuple] = None, pooled: bool = False):
         super().__init__()
         self.net = nn.Sequential(
             nn.Linear(in_dim, hidden_dim), nn.Tanh(), nn.Linear(hidden_dim, hidden_dim), nn.Tanh(), nn.Linear(hidden_dim, 1)
@@ -166,16 +167,28 @@ class Discriminator(nn.Module):
         shift, scale = stats if stats is not None else (torch.zeros(in_dim), torch.ones(in_dim))
         self.register_buffer("shift", torch.as_tensor(shift, dtype=torch.float32).clone())
         self.register_buffer("scale", torch.as_tensor(scale, dtype=torch.float32).clone())
-        self.gp_weight, self.gp_center = gp_weight, gp_center
+        self.register_buffer("var", torch.ones(in_dim))  # pooled: the running variance behind `scale`
+        self.register_buffer("updates", torch.zeros(()))
+        self.gp_weight, self.gp_center, self.pooled = gp_weight, gp_center, pooled
         self.optimizer = torch.optim.Adam(self.parameters(), lr=lr)
 
     def forward(self, x):
         return self.net((x - self.shift) / self.scale).squeeze(-1)
 
     def load_state_dict(self, state: dict, strict: bool = True):
-        """Files saved before inputs could be standardised have no shift and scale: none then."""
-        return super().load_state_dict({"shift": torch.zeros_like(self.shift), "scale": torch.ones_like(self.scale)}
-                                       | dict(state), strict)
+        """Files saved before inputs could be standardised have no statistics: none then."""
+        return super().load_state_dict({"shift": torch.zeros_like(self.shift), "scale": torch.ones_like(self.scale),
+                                        "var": torch.ones_like(self.var), "updates": torch.zeros(())} | dict(state), strict)
+
+    @torch.no_grad()
+    def update_stats(self, x):
+        """pooled: move shift and scale towards the batch's mean and variance (a plain average over the first 1,000
+        batches, then a moving average with rate 0.001); a column constant so far keeps scale 1."""
+        self.updates += 1
+        rate = (1.0 / self.updates).clamp(min=1e-3)
+        self.shift.lerp_(x.mean(0), rate)
+        self.var.lerp_(x.var(0), rate)
+        self.scale.copy_(torch.where(self.var > 1e-12, self.var.sqrt(), 1.0))
 
     def loss(self, expert_x, policy_x):
         """BCE(D(expert), 1) + BCE(D(policy), 0) + gp_weight * E[(||grad_z logit(z_hat)|| - gp_center)^2], z the
@@ -191,6 +204,8 @@ class Discriminator(nn.Module):
         return bce + self.gp_weight * gp, bce, gp, torch.sigmoid(expert_logits).mean(), torch.sigmoid(policy_logits).mean()
 
     def update(self, expert_x, policy_x) -> dict:
+        if self.pooled:
+            self.update_stats(torch.cat([expert_x, policy_x]))
         loss, bce, gp, expert_prob, policy_prob = self.loss(expert_x, policy_x)
         self.optimizer.zero_grad(set_to_none=False)
         loss.backward()
@@ -205,7 +220,7 @@ class Discriminator(nn.Module):
 
 
 def input_stats(x):
-    """Per-column mean and std of D's inputs on the demonstrations, for `--disc-normalize`; a column that is
+    """Per-column mean and std of D's inputs on the demonstrations, for `--disc-normalize demos`; a column that is
     constant there (an absorbing indicator the demonstrations never set) is left as it is."""
     mean, std = x.mean(0), x.std(0)
     varies = std > 1e-6
@@ -786,9 +801,9 @@ if __name__ == "__main__":
     # ALGO LOGIC: the agent, the discriminator and the replay buffer
     aug_dim = obs_dim + absorbing  # with absorbing states, every stored observation has the indicator column
     agent = SAC(aug_dim, act_dim, low, high, args, device, absorbing=absorbing)
-    stats = input_stats(torch.cat([expert["obs"], expert["actions"]], -1)) if args.disc_normalize else None
+    stats = input_stats(torch.cat([expert["obs"], expert["actions"]], -1)) if args.disc_normalize == "demos" else None
     disc = Discriminator(aug_dim + act_dim, args.disc_hidden_dim, args.disc_lr, args.disc_gp, args.disc_gp_center,
-                         stats).to(device)
+                         stats, args.disc_normalize == "pooled").to(device)
     rb = ReplayBuffer(aug_dim, act_dim, args.buffer_size, device)
     stateful = {"agent": agent, "disc": disc, "disc_optimizer": disc.optimizer, "replay_buffer": rb}
     run = Run(args, checkpoint, stateful, float(demos["episode_returns"].mean()), device,

@@ -290,6 +290,26 @@ def test_standardised_inputs_and_their_statistics():
     assert disc.shift.tolist() == [0.0] * 3 and disc.scale.tolist() == [1.0] * 3
 
 
+def test_pooled_statistics_follow_both_sources():
+    """--disc-normalize pooled: shift and scale are the running mean and std of each update's expert and agent
+    inputs together, a plain average over the first 1,000 updates, then a moving average with rate 0.001."""
+    disc = rile.Discriminator(2, 8, lr=1e-3, gp_weight=0.0, pooled=True)
+    disc.update_stats(torch.tensor([[0.0, 5.0], [2.0, 5.0]]))  # rate 1: this batch's mean (1, 5) and variance (2, 0)
+    assert disc.shift.tolist() == [1.0, 5.0] and disc.scale.tolist() == pytest.approx([2 ** 0.5, 1.0])  # constant: 1
+    disc.update_stats(torch.tensor([[3.0, 5.0], [3.0, 7.0]]))  # rate 1/2: mean (3, 6), variance (0, 2)
+    assert disc.shift.tolist() == [2.0, 5.5] and disc.var.tolist() == [1.0, 1.0] and disc.scale.tolist() == [1.0, 1.0]
+    disc.updates.fill_(5_000)
+    disc.update_stats(torch.tensor([[2.0, 5.5], [4.0, 5.5]]))  # rate 0.001: mean (3, 5.5), variance (2, 0)
+    assert disc.shift.tolist() == pytest.approx([2.001, 5.5]) and disc.var.tolist() == pytest.approx([1.001, 0.999])
+    expert, agent = torch.tensor([[1.0, 1.0]]), torch.tensor([[3.0, 3.0]])
+    before = disc.shift.clone()
+    disc.update(expert, agent)  # update() refreshes the statistics first
+    assert not torch.equal(disc.shift, before)
+    fixed = rile.Discriminator(2, 8, lr=1e-3, gp_weight=0.0)
+    fixed.update(expert, agent)
+    assert fixed.shift.tolist() == [0.0, 0.0] and fixed.scale.tolist() == [1.0, 1.0]  # none by default
+
+
 def test_discriminator_learns_to_separate():
     torch.manual_seed(0)
     disc = rile.Discriminator(2, 16, lr=1e-2, gp_weight=1.0)
