@@ -23,12 +23,13 @@ Implementation choices and deviations
    updated with tau 0.005 every step, fixed alpha, critic lr 3e-4. `--preset auto` (default) takes the value
    variant and alpha of the IQ-Learn paper's scripts for the MuJoCo envs it lists (Hopper and Walker2d v0 /
    1e-2, HalfCheetah value / 1e-2, Ant value / 1e-3, Humanoid v0 / 1.0) with the actor lr of its README's
-   MuJoCo commands, 3e-5. Other envs get the actor lr of IQ-Learn's agent config, 3e-4, alpha 1e-2 and v0,
-   measured on Pendulum-v1 (no terminations, actions in [-2, 2], 10 demonstrations, 15k steps, seed 1; issue
-   32): with the MuJoCo actor lr nothing is learned in 15k steps (-1396, random actions -1346; alpha 0.1:
-   -1226; the chi^2 term at the stored actions: -1474), with 3e-4 and `value` -1096, with 3e-4 and v0 -286 (the
-   expert -111 on its demonstrations' starts, -199 on the evaluation's). `--preset none`: IQ-Learn's
-   generic configs (value, 1e-2, actor lr 3e-4). Explicit flags override either.
+   MuJoCo commands, 3e-5. Other envs get the actor lr of IQ-Learn's agent config, 3e-4, alpha 1e-2, v0 and
+   the chi^2 term at the stored actions, measured on Pendulum-v1 (no terminations, actions in [-2, 2], 10
+   demonstrations, 15k steps; issue 32): with the MuJoCo actor lr nothing is learned (-1396, random actions
+   -1346), with 3e-4 and `value` -1096, with 3e-4 and v0 -286 / -974 / -1240 (seeds 1-3) with the chi^2 term at
+   the policy's actions and -332 / -296 / -229 at the stored ones (the expert -111 on its demonstrations'
+   starts, -199 on the evaluation's). `--preset none`: IQ-Learn's generic configs (value, 1e-2, actor lr 3e-4,
+   the policy's actions). Explicit flags override either.
 3. Done semantics (`--timeout-done`): off (default), only true terminations stop bootstrapping, for
    expert and online data alike; on, time-limit truncations count as done in both, as the authors'
    code does on MuJoCo (its expert files mark the 1000th step done).
@@ -126,8 +127,9 @@ class Args:
     """the learning rate of the critic"""
     chi2_alpha: float = 0.5
     """the chi^2 regulariser is 1 / (4 chi2_alpha) mean(r^2)"""
-    chi2_actions: Literal["policy", "replay"] = "policy"
-    """the chi^2 term's action on policy states: policy (a ~ pi(s), the authors' code) or replay (the stored one)"""
+    chi2_actions: Optional[Literal["policy", "replay"]] = None
+    """the chi^2 term's action on policy states: policy (a ~ pi(s), the authors' code) or replay (the stored one);
+    default by preset (policy for the MuJoCo envs the paper lists, else replay)"""
     timeout_done: bool = False
     """count time-limit truncations as done (IQ-Learn's code) for expert and online data alike"""
     hidden_dim: int = 256
@@ -217,15 +219,16 @@ class IQLearn(nn.Module):
 
 
 def apply_preset(args):
-    """The value term, alpha and actor lr the flags leave open (header, choice 2)."""
+    """The value term, alpha, actor lr and chi^2 actions the flags leave open (header, choice 2)."""
     name = args.env_id.split("-")[0]
     if args.preset == "none":
-        value_loss, alpha, policy_lr = "value", 1e-2, 3e-4  # IQ-Learn's agent and method configs
+        value_loss, alpha, policy_lr, chi2_actions = "value", 1e-2, 3e-4, "policy"  # IQ-Learn's agent and method configs
     elif name in PRESETS:
-        value_loss, alpha, policy_lr = *PRESETS[name], 3e-5  # its paper's MuJoCo scripts
+        value_loss, alpha, policy_lr, chi2_actions = *PRESETS[name], 3e-5, "policy"  # its paper's MuJoCo scripts
     else:
-        value_loss, alpha, policy_lr = "v0", 1e-2, 3e-4  # measured on Pendulum-v1
+        value_loss, alpha, policy_lr, chi2_actions = "v0", 1e-2, 3e-4, "replay"  # measured on Pendulum-v1
     args.value_loss = args.value_loss or value_loss
+    args.chi2_actions = args.chi2_actions or chi2_actions
     args.alpha = alpha if args.alpha is None else args.alpha
     args.policy_lr = policy_lr if args.policy_lr is None else args.policy_lr
     return args

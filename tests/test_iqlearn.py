@@ -119,15 +119,15 @@ def test_update_steps_the_critic_actor_and_target():
 
 def test_presets():
     a = iqlearn.apply_preset(iqlearn.Args(env_id="Hopper-v4"))
-    assert (a.value_loss, a.alpha, a.policy_lr) == ("v0", 1e-2, 3e-5)  # as before issue 32: Hopper's runs stand
+    assert (a.value_loss, a.alpha, a.policy_lr, a.chi2_actions) == ("v0", 1e-2, 3e-5, "policy")  # Hopper's runs stand
     a = iqlearn.apply_preset(iqlearn.Args(env_id="HalfCheetah-v4", alpha=0.5))
     assert (a.value_loss, a.alpha, a.policy_lr) == ("value", 0.5, 3e-5)  # explicit flags win
     a = iqlearn.apply_preset(iqlearn.Args(env_id="Humanoid-v4", preset="none"))
-    assert (a.value_loss, a.alpha, a.policy_lr) == ("value", 1e-2, 3e-4)  # IQ-Learn's generic configs
+    assert (a.value_loss, a.alpha, a.policy_lr, a.chi2_actions) == ("value", 1e-2, 3e-4, "policy")  # IQ-Learn's generic
     a = iqlearn.apply_preset(iqlearn.Args(env_id="Pendulum-v1"))
-    assert (a.value_loss, a.alpha, a.policy_lr) == ("v0", 1e-2, 3e-4)  # an env its paper does not list
-    a = iqlearn.apply_preset(iqlearn.Args(env_id="Pendulum-v1", policy_lr=1e-3, value_loss="value"))
-    assert (a.value_loss, a.policy_lr) == ("value", 1e-3)
+    assert (a.value_loss, a.alpha, a.policy_lr, a.chi2_actions) == ("v0", 1e-2, 3e-4, "replay")  # an env it does not list
+    a = iqlearn.apply_preset(iqlearn.Args(env_id="Pendulum-v1", policy_lr=1e-3, value_loss="value", chi2_actions="policy"))
+    assert (a.value_loss, a.policy_lr, a.chi2_actions) == ("value", 1e-3, "policy")
 
 
 @pytest.mark.parametrize("timeout_done", [False, True])
