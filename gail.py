@@ -16,10 +16,11 @@ Implementation choices and deviations
    softplus, so none of them overflows. The form in use is printed and logged.
 3. Discriminator: the same block as rile.py, with its defaults (its choice 4): 64-64 tanh, BCE with
    expert = 1, lr 3e-5, 32 + 32 pairs per update, one update per env step, trained on the most recent
-   `--disc-buffer-size` (16,384) learner transitions (the paper's GAIL settings), and a zero-centred gradient
-   penalty of weight 3 where the paper's is DAC's one-centred one of weight 1 (`--disc-gp-center 1 --disc-gp 1`),
+   `--disc-buffer-size` (16,384) learner transitions (the paper's GAIL settings), and a gradient penalty of the
+   paper's weight 1, zero-centred on inputs standardised by the running statistics of D's batches (`--disc-normalize
+   pooled`) where the paper's is DAC's one-centred one on raw inputs (`--disc-gp-center 1 --disc-normalize none`),
    which drives D to its floor on the learner's pairs and leaves RILe's trainer nothing to follow.
-   `--disc-normalize` and `--disc-update-every` as in rile.py.
+   `--disc-update-every` as in rile.py.
 4. SAC: the shared block of expert.py with the paper's GAIL column, tau 0.01, except the temperature: tuned
    towards -|A| by default (`--no-autotune`: the paper's fixed 0.2, with which HalfCheetah-v4 learned nothing
    in 3 seeds at 200k; tuned: 0.98 x expert, one seed).
@@ -127,16 +128,17 @@ class Args:
     """expert pairs and agent pairs per discriminator update (each)"""
     disc_buffer_size: int = 16_384
     """the discriminator learns from this many most recent agent transitions"""
-    disc_gp: float = 3.0
-    """weight of the gradient penalty (the paper's: 1)"""
+    disc_gp: float = 1.0
+    """weight of the gradient penalty (the paper's)"""
     disc_gp_center: float = 0.0
     """the norm the gradient penalty pulls D's input gradient towards: 0 (zero-centred) or 1 (one-centred, DAC's and
     the paper's; header, choice 3)"""
     disc_update_every: int = 1
     """one discriminator update every this many env steps (the paper's "1 update per round")"""
-    disc_normalize: Literal["none", "demos", "pooled"] = "none"
-    """standardise the discriminator's inputs (its gradient penalty then acts in those units): by the demonstrations'
-    mean and std, or by the running statistics of its training batches, expert and agent pairs pooled"""
+    disc_normalize: Literal["none", "demos", "pooled"] = "pooled"
+    """standardise the discriminator's inputs (its gradient penalty then acts in those units): by the running
+    statistics of its training batches, expert and agent pairs pooled; by the demonstrations' mean and std; or none
+    (the paper's)"""
 
     # Imitation arguments
     expert_path: Optional[str] = None

@@ -20,10 +20,12 @@ Implementation choices and deviations
 3. The trainer's and D's buffers (16,384 each) are windows over the newest transitions of the student's.
 4. Discriminator (gail.py's block and defaults): 64-64 tanh, BCE, lr 3e-5, 32 + 32 pairs, one update per env
    step, and a gradient penalty whose weight the paper gives (1) but not its form. DAC's one-centred form lets
-   D reach its floor on the student's pairs, where v = 2D - 1 is flat and the trainer has nothing to pass on.
-   Default: zero-centred (Mescheder et al. 2018), weight 3. The paper's: `--disc-gp-center 1 --disc-gp 1`;
-   also `--disc-normalize demos|pooled` (inputs standardised by the demonstrations' statistics or by running ones of
-   both sources) and `--disc-update-every`.
+   D reach its floor on the student's pairs, where v = 2D - 1 is flat and the trainer has nothing to pass on;
+   a zero-centred one (Mescheder et al. 2018) on raw inputs flattens D by the inputs' scale (HalfCheetah's
+   velocities against Pendulum's unit circle), so no weight serves every env. Default: zero-centred, the paper's
+   weight 1, on inputs standardised by the running mean and std of D's own batches, expert and student pairs
+   pooled (`--disc-normalize pooled`): what separates the two is then a few units in every env. The paper's D:
+   `--disc-gp-center 1 --disc-normalize none`; also `--disc-normalize demos` and `--disc-update-every`.
 5. Freezing: the paper freezes the trainer "once its critic network converges" (threshold 0.1), so that the
    student is not confused "in the later stages of training", and names no test. Ours: a moving average
    (0.99) of the critic's TD loss relative to the variance of its targets (a raw loss is met by any flat
@@ -182,16 +184,17 @@ class Args:
     """expert pairs and agent pairs per discriminator update (each)"""
     disc_buffer_size: int = 16_384
     """the discriminator learns from this many most recent agent transitions"""
-    disc_gp: float = 3.0
-    """weight of the gradient penalty (the paper's: 1)"""
+    disc_gp: float = 1.0
+    """weight of the gradient penalty (the paper's)"""
     disc_gp_center: float = 0.0
     """the norm the gradient penalty pulls D's input gradient towards: 0 (zero-centred) or 1 (one-centred, DAC's and
     the paper's; header, choice 4)"""
     disc_update_every: int = 1
     """one discriminator update every this many env steps (the paper's "1 update per round")"""
-    disc_normalize: Literal["none", "demos", "pooled"] = "none"
-    """standardise the discriminator's inputs (its gradient penalty then acts in those units): by the demonstrations'
-    mean and std, or by the running statistics of its training batches, expert and agent pairs pooled"""
+    disc_normalize: Literal["none", "demos", "pooled"] = "pooled"
+    """standardise the discriminator's inputs (its gradient penalty then acts in those units): by the running
+    statistics of its training batches, expert and agent pairs pooled; by the demonstrations' mean and std; or none
+    (the paper's)"""
 
     # Imitation arguments
     expert_path: Optional[str] = None
