@@ -212,7 +212,7 @@ def main(argv=None):
                            ["--env-id", ENV_ID, "--expert-path", EXPERT_PATH, "--num-expert-trajs", "1", "--seed",
                             str(args.seed), "--learning-starts", str(args.learning_starts), "--eval-freq",
                             str(args.segment_steps), "--eval-episodes", "2", "--buffer-size", str(total + 1),
-                            "--checkpoint-freq", "0", "--hidden-dim", str(args.hidden_dim), *flags]
+                            "--hidden-dim", str(args.hidden_dim), *flags]
                            + (["--dynamics-freq", str(args.segment_steps), "--trainer-hidden-dim", str(args.hidden_dim),
                                "--trainer-freeze-after", str(total // 2)]  # half of all segments, not of the first
                               if script == "rile.py" else []))

@@ -55,7 +55,8 @@ def train_segments(script: str, run_name: str, segment_steps: int, segments: int
             continue
         cmd = [sys.executable, "-W", "ignore", os.path.join(ROOT, script), "--total-timesteps", str(steps), "--threads", "1"]
         resuming = os.path.exists(os.path.join(run_dir, "checkpoint.pt"))
-        cmd += ["--resume", run_dir] if resuming else ["--run-name", run_name, *extra]
+        # a checkpoint at each segment's end (the last flag wins): the next segment resumes from it
+        cmd += ["--resume", run_dir] if resuming else ["--run-name", run_name, *extra, "--checkpoint-freq", str(segment_steps)]
         out = subprocess.run(cmd, stdout=log, stderr=subprocess.STDOUT if log else None)
         if out.returncode != 0:
             raise SystemExit(f"error: {' '.join(cmd)} failed ({out.returncode})")

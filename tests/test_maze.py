@@ -149,7 +149,8 @@ def test_segments_reproduce_rile_dynamics(tmp_path):
     maze.record_demonstration("experts/UMaze-v0.npz")
     flags = ["--env-id", maze.ENV_ID, "--expert-path", "experts/UMaze-v0.npz", "--num-expert-trajs", "1",
              "--learning-starts", "100", "--hidden-dim", "16", "--trainer-hidden-dim", "16", "--batch-size", "16",
-             "--trainer-batch-size", "16", "--eval-episodes", "1", "--buffer-size", "1000", "--dynamics-freq", "300"]
+             "--trainer-batch-size", "16", "--eval-episodes", "1", "--buffer-size", "1000", "--dynamics-freq", "300",
+             "--checkpoint-freq", "0"]  # segments need a checkpoint at each end whatever the flags say
     with open(os.devnull, "w") as devnull:
         run_dir = reward_dynamics.train_segments("rile.py", "tiny", 300, 2, flags, log=devnull)
     assert reward_dynamics.snapshots(run_dir) == [300, 600]
