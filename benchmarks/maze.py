@@ -13,7 +13,7 @@
    --hidden-dim 64 for the SAC networks and rile.py's trainer: a 2-D point needs no wider ones), in
    --segments segments of --segment-steps env steps (`reward_dynamics.py train`: one --resume per segment,
    the learned reward kept after each). rile.py runs twice: as it is, and with --no-trainer-freeze, because
-   its default freeze rule stops the trainer (the student's reward) after ~11k steps of this maze, so the
+   its default freeze rule stops the trainer (the student's reward) at half the run (16k steps), so the
    picture of the default run stops changing there.
 3. Figure 1 (benchmarks/results/maze_rewards.png): one row per method, one column per quarter of
    training; each panel is the learned reward on a grid of positions (`Snapshot.state_reward`: at each
@@ -48,7 +48,7 @@ EXPERT_PATH = os.path.join("experts", "UMaze-v0.npz")
 RESULTS = os.path.join(ROOT, "benchmarks", "results")
 METHODS = {  # name: (script, its flags beyond the shared ones)
     "rile": ("rile.py", []),
-    "rile-nofreeze": ("rile.py", ["--no-trainer-freeze"]),  # the default freezes the trainer at ~11k steps here
+    "rile-nofreeze": ("rile.py", ["--no-trainer-freeze"]),  # the default freezes the trainer at half the run here
     "gail": ("gail.py", []),
     "airl": ("airl.py", []),
 }
