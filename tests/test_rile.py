@@ -159,17 +159,17 @@ def freeze_step(critic_loss: float, target_var: float, total: int = 1000, **kw):
             return state["frozen_at"]
 
 
-def test_freeze_waits_for_half_the_run_and_a_held_window():
+def test_freeze_waits_for_three_quarters_of_the_run_and_a_held_window():
     # relative statistic 0.01 / (2 x 1) = 0.005 < 0.1 from the first check at step 100
-    assert freeze_step(0.01, 1.0) == 500  # never before half of the 1000 steps (--trainer-freeze-after)
+    assert freeze_step(0.01, 1.0) == 800  # the first check (every 100) after 3/4 of the 1000 steps (--trainer-freeze-after)
     assert freeze_step(0.01, 1.0, trainer_freeze_after=0, trainer_freeze_window=300) == 400  # below since 100
-    assert freeze_step(0.01, 1.0, trainer_freeze_min_updates=700) == 700
+    assert freeze_step(0.01, 1.0, trainer_freeze_min_updates=900) == 900
 
 
 def test_a_flat_target_does_not_pass_for_convergence():
     # a critic loss of 0.01 on targets that barely vary: under the raw threshold, not under the relative one
     assert freeze_step(0.01, 0.001) is None
-    assert freeze_step(0.01, 0.001, trainer_freeze_stat="loss") == 500
+    assert freeze_step(0.01, 0.001, trainer_freeze_stat="loss") == 800
     # the earlier rule: the raw loss, the first crossing after --trainer-freeze-min-updates, at any point of the run
     assert freeze_step(0.01, 0.001, trainer_freeze_stat="loss", trainer_freeze_window=0, trainer_freeze_after=0,
                        trainer_freeze_min_updates=150) == 200
