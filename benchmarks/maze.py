@@ -13,7 +13,7 @@
    --hidden-dim 64 for the SAC networks and rile.py's trainer: a 2-D point needs no wider ones), in
    --segments segments of --segment-steps env steps (`reward_dynamics.py train`: one --resume per segment,
    the learned reward kept after each). rile.py runs twice: as it is, and with --no-trainer-freeze, because
-   its default freeze rule stops the trainer (the student's reward) at half the run (16k steps), so the
+   its default freeze rule stops the trainer (the student's reward) at 3/4 of the run (24k steps), so the
    picture of the default run stops changing there.
 3. Figure 1 (benchmarks/results/maze_rewards.png): one row per method, one column per quarter of
    training; each panel is the learned reward on a grid of positions (`Snapshot.state_reward`: at each
@@ -48,7 +48,7 @@ EXPERT_PATH = os.path.join("experts", "UMaze-v0.npz")
 RESULTS = os.path.join(ROOT, "benchmarks", "results")
 METHODS = {  # name: (script, its flags beyond the shared ones)
     "rile": ("rile.py", []),
-    "rile-nofreeze": ("rile.py", ["--no-trainer-freeze"]),  # the default freezes the trainer at half the run here
+    "rile-nofreeze": ("rile.py", ["--no-trainer-freeze"]),  # the default freezes the trainer at 3/4 of the run here
     "gail": ("gail.py", []),
     "airl": ("airl.py", []),
 }
@@ -214,7 +214,7 @@ def main(argv=None):
                             str(args.segment_steps), "--eval-episodes", "2", "--buffer-size", str(total + 1),
                             "--hidden-dim", str(args.hidden_dim), *flags]
                            + (["--dynamics-freq", str(args.segment_steps), "--trainer-hidden-dim", str(args.hidden_dim),
-                               "--trainer-freeze-after", str(total // 2)]  # half of all segments, not of the first
+                               "--trainer-freeze-after", str(total * 3 // 4)]  # the default's 3/4 of all segments, not of the first
                               if script == "rile.py" else []))
             print(f"{method}: {total} steps in {time.time() - start:.0f} s", flush=True)
     summary = figures(args.methods, args.seed)
