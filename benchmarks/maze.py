@@ -214,7 +214,7 @@ def main(argv=None):
                             str(args.segment_steps), "--eval-episodes", "2", "--buffer-size", str(total + 1),
                             "--hidden-dim", str(args.hidden_dim), *flags]
                            + (["--dynamics-freq", str(args.segment_steps), "--trainer-hidden-dim", str(args.hidden_dim),
-                               "--trainer-freeze-after", str(total * 3 // 4)]  # the default's 3/4 of all segments, not of the first
+                               "--trainer-freeze-after", str(total * 3 // 4)]  # 3/4 of all segments, not of the first
                               if script == "rile.py" else []))
             print(f"{method}: {total} steps in {time.time() - start:.0f} s", flush=True)
     summary = figures(args.methods, args.seed)
