@@ -679,21 +679,9 @@ class Run:
         self.dir = os.path.join("runs", self.name)
         os.makedirs(self.dir, exist_ok=True)
         save_file(os.path.join(self.dir, "config.json"), asdict(args))
-        if args.track:
-            import wandb
-            wandb.init(project=args.wandb_project_name, entity=args.wandb_entity, sync_tensorboard=True,
-                       config=vars(args), name=self.name, id=self.name, resume="allow", save_code=True)
-        from torch.utils.tensorboard import SummaryWriter
-        self.writer = SummaryWriter(self.dir)
-        table = "\n".join(f"|{k}|{v}|" for k, v in asdict(args).items())
-        self.writer.add_text("hyperparameters", f"|param|value|\n|-|-|\n{table}")
-        self.machine = machine(device)
+        self.writer, self.machine = tensorboard(args, self.name, self.dir), machine(device)
         if checkpoint:
-            for name, obj in stateful.items():
-                if isinstance(obj, dict):
-                    obj.update({k: v.to(device) if torch.is_tensor(v) else v for k, v in checkpoint[name].items()})
-                else:
-                    obj.load_state_dict(checkpoint[name])
+            restore(stateful, checkpoint, device)
             self.evals, self.start_step, wall_time = checkpoint["evals"], checkpoint["step"], checkpoint["wall_time"]
             set_rng_state(checkpoint["rng"])
             print(f"resumed {self.dir} at step {self.start_step}")
@@ -763,6 +751,28 @@ class Run:
             evaluate(act, self.args.env_id, 1, self.args.seed + 100_000, capture_video_dir=os.path.join(self.dir, "videos"))
         self.writer.close()
         print(f"done: {self.args.total_timesteps} steps in {(time.time() - self.start_time) / 60:.1f} min: {self.dir}")
+
+
+def tensorboard(args, name: str, run_dir: str):
+    """The run's TensorBoard writer (mirrored to Weights & Biases with --track), the config as its first text."""
+    if args.track:
+        import wandb
+        wandb.init(project=args.wandb_project_name, entity=args.wandb_entity, sync_tensorboard=True,
+                   config=vars(args), name=name, id=name, resume="allow", save_code=True)
+    from torch.utils.tensorboard import SummaryWriter
+    writer = SummaryWriter(run_dir)
+    table = "\n".join(f"|{k}|{v}|" for k, v in asdict(args).items())
+    writer.add_text("hyperparameters", f"|param|value|\n|-|-|\n{table}")
+    return writer
+
+
+def restore(stateful: dict, checkpoint: dict, device) -> None:
+    """Each object's saved state: load_state_dict, or for a plain dict an update (its tensors moved to `device`)."""
+    for name, obj in stateful.items():
+        if isinstance(obj, dict):
+            obj.update({k: v.to(device) if torch.is_tensor(v) else v for k, v in checkpoint[name].items()})
+        else:
+            obj.load_state_dict(checkpoint[name])
 
 
 def save_file(path: str, obj) -> None:
