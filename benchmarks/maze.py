@@ -12,9 +12,9 @@
    the lengths and widths that keep the experiment short on a CPU (--learning-starts 1000, --eval-episodes 2,
    --hidden-dim 64 for the SAC networks and rile.py's trainer: a 2-D point needs no wider ones), in
    --segments segments of --segment-steps env steps (`reward_dynamics.py train`: one --resume per segment,
-   the learned reward kept after each). rile.py runs twice: as it is, and with --no-trainer-freeze, because
-   its default freeze rule stops the trainer (the student's reward) at 3/4 of the run (24k steps), so the
-   picture of the default run stops changing there.
+   the learned reward kept after each). rile.py runs twice: as it is, and with its freeze test alone
+   (--trainer-freeze-after 0: no guard keeping the freeze from the first three quarters of the run), to show
+   what freezing the trainer does to the picture.
 3. Figure 1 (benchmarks/results/maze_rewards.png): one row per method, one column per quarter of
    training; each panel is the learned reward on a grid of positions (`Snapshot.state_reward`: at each
    position s, the reward of the pair (s, pi(s)) with pi(s) the same snapshot's deterministic action; for
@@ -48,7 +48,7 @@ EXPERT_PATH = os.path.join("experts", "UMaze-v0.npz")
 RESULTS = os.path.join(ROOT, "benchmarks", "results")
 METHODS = {  # name: (script, its flags beyond the shared ones)
     "rile": ("rile.py", []),
-    "rile-nofreeze": ("rile.py", ["--no-trainer-freeze"]),  # the default freezes the trainer at 3/4 of the run here
+    "rile-test-only": ("rile.py", ["--trainer-freeze-after", "0"]),  # the freeze test without the 3/4 guard
     "gail": ("gail.py", []),
     "airl": ("airl.py", []),
 }
@@ -212,10 +212,10 @@ def main(argv=None):
                            ["--env-id", ENV_ID, "--expert-path", EXPERT_PATH, "--num-expert-trajs", "1", "--seed",
                             str(args.seed), "--learning-starts", str(args.learning_starts), "--eval-freq",
                             str(args.segment_steps), "--eval-episodes", "2", "--buffer-size", str(total + 1),
-                            "--hidden-dim", str(args.hidden_dim), *flags]
+                            "--hidden-dim", str(args.hidden_dim)]
                            + (["--dynamics-freq", str(args.segment_steps), "--trainer-hidden-dim", str(args.hidden_dim),
                                "--trainer-freeze-after", str(total * 3 // 4)]  # 3/4 of all segments, not of the first
-                              if script == "rile.py" else []))
+                              if script == "rile.py" else []) + flags)  # a method's own flags last: they win
             print(f"{method}: {total} steps in {time.time() - start:.0f} s", flush=True)
     summary = figures(args.methods, args.seed)
     with open(os.path.join(RESULTS, "maze.json"), "w") as f:
