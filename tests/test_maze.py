@@ -187,3 +187,15 @@ def test_train_command_passes_the_scripts_flags(monkeypatch):
 def test_cell_means_follow_the_way_to_the_goal():
     grid = maze.reward_grid(lambda p: p[:, 0] + 10 * p[:, 1], resolution=4)
     assert maze.cell_means(grid) == [36.5, 37.5, 38.5, 28.5, 18.5, 17.5, 16.5]  # centres' x + 10 y, S to G
+
+
+def test_run_gives_each_method_its_flags_last(monkeypatch, tmp_path):
+    """rile.py's runs get the default's guard (3/4 of all segments, not of the first), and a method's own flags
+    come after it, so that `rile-test-only` really runs without the guard (the last flag wins)."""
+    calls = []
+    monkeypatch.setattr(maze, "train_segments", lambda script, name, steps, segments, extra: calls.append(extra))
+    monkeypatch.setattr(maze, "figures", lambda methods, seed: {})
+    monkeypatch.setattr(maze, "RESULTS", str(tmp_path))
+    maze.main(["run", "--methods", "rile", "rile-test-only", "gail", "--segments", "4", "--segment-steps", "1000"])
+    guard = lambda extra: [v for k, v in zip(extra, extra[1:]) if k == "--trainer-freeze-after"]
+    assert [guard(extra) for extra in calls] == [["3000"], ["3000", "0"], []]
