@@ -56,9 +56,6 @@ import torch.nn as nn
 import torch.nn.functional as F
 import tyro
 
-TRAINER_REWARDS = ("difference", "exp-difference", "multiplication", "naive", "exp-naive", "sigmoid")
-
-
 @dataclass
 class Args:
     exp_name: str = "drail"
@@ -342,7 +339,7 @@ def rile_update(student: "SAC", trainer: "SAC", disc: nn.Module, rb: "ReplayBuff
     obs_trainer, a_trainer = trainer_input(batch.obs, batch.actions, batch.next_obs, args.trainer_obs), batch.extra
     with torch.no_grad():
         d = disc.prob(torch.cat([batch.obs, getattr(batch, seen)], -1))
-        r_trainer = trainer_reward(args.trainer_reward, d, a_trainer.squeeze(-1))
+        r_trainer = TRAINER_REWARDS[args.trainer_reward](d, a_trainer.squeeze(-1))
         if args.trainer_obs == "transition":  # o_T' = (s', s''), s'' as the student went on
             next_obs_trainer = torch.cat([batch.next_obs, successor_next_obs(rb, idx, batch)], -1)
         else:  # o_T' = (s', a'_S), a'_S from the current student (header, choice 2)
@@ -354,22 +351,14 @@ def rile_update(student: "SAC", trainer: "SAC", disc: nn.Module, rb: "ReplayBuff
     return metrics
 
 
-def trainer_reward(name: str, d, a_trainer):
-    """The trainer's reward for discriminator output d = D(s, a_S) in (0, 1) and its action a_T in [-1, 1]."""
-    v = 2 * d - 1
-    if name == "difference":
-        return -(v - a_trainer).abs()
-    if name == "exp-difference":
-        return torch.exp(-(v - a_trainer).abs())
-    if name == "multiplication":
-        return v * a_trainer
-    if name == "naive":
-        return d
-    if name == "exp-naive":
-        return torch.exp(1 - d)
-    if name == "sigmoid":
-        return d * torch.sigmoid(a_trainer)
-    raise ValueError(f"unknown trainer reward '{name}'; choose from {TRAINER_REWARDS}")
+TRAINER_REWARDS = {  # the paper's six, for D's output d = D(s, a_S) in (0, 1) and the trainer's action a in [-1, 1]
+    "difference": lambda d, a: -(2 * d - 1 - a).abs(),  # -|v(D) - a_T|, v(D) = 2D - 1
+    "exp-difference": lambda d, a: torch.exp(-(2 * d - 1 - a).abs()),
+    "multiplication": lambda d, a: (2 * d - 1) * a,
+    "naive": lambda d, a: d,
+    "exp-naive": lambda d, a: torch.exp(1 - d),
+    "sigmoid": lambda d, a: d * torch.sigmoid(a),
+}
 
 
 def student_reward(trainer_actor, obs_trainer, remedy: str):

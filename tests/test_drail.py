@@ -76,7 +76,7 @@ def test_d_is_a_probability_that_learns_which_class_is_the_expert():
 def test_drail_rile_gives_the_trainer_rile_py_reward(monkeypatch):
     dvals, a_t = torch.tensor([0.1, 0.6, 0.95]), torch.tensor([0.2, -0.3, 0.9])
     for name in rile.TRAINER_REWARDS:
-        assert torch.equal(drail_disc.trainer_reward(name, dvals, a_t), rile.trainer_reward(name, dvals, a_t))
+        assert torch.equal(drail_disc.TRAINER_REWARDS[name](dvals, a_t), rile.TRAINER_REWARDS[name](dvals, a_t))
     # inside the update: the trainer is rewarded from this discriminator's D, exactly as rile.py does
     args = drail_disc.Args(hidden_dim=8, trainer_hidden_dim=8, batch_size=4, trainer_batch_size=4, disc_batch_size=4)
     student = drail_disc.SAC(2, 1, -np.ones(1), np.ones(1), args, "cpu")
@@ -93,7 +93,7 @@ def test_drail_rile_gives_the_trainer_rile_py_reward(monkeypatch):
               "terminations": torch.zeros(5)}
     drail_disc.rile_update(student, trainer, d, rb, expert, args, drail_disc.rile_state("cpu"), 1)
     r_t = seen["b"][3]
-    assert torch.allclose(r_t, rile.trainer_reward("exp-difference", torch.full((4,), 0.8), torch.full((4,), 0.5)))
+    assert torch.allclose(r_t, rile.TRAINER_REWARDS["exp-difference"](torch.full((4,), 0.8), torch.full((4,), 0.5)))
 
 
 @pytest.mark.parametrize("variant", ["gail", "rile"])
