@@ -55,7 +55,8 @@ losses/disc_gp, disc/expert_prob, disc/policy_prob, reward/learned_mean, reward/
 trainer/frozen, trainer/critic_loss_ema. Every --dynamics-freq steps, in TensorBoard (dynamics/<name>),
 dynamics.json and results.json ("reward_measures", beside "trainer_frozen_at"): r_s_demos, r_s_student and
 r_s_spread (r_S on the demonstrations' pairs, on the student's pairs of the interval, their difference),
-r_s_absorbing, d_demos and d_student (D on the same pairs), critic_loss and critic_loss_relative (the freeze
+r_s_absorbing, d_demos and d_student (D on the same pairs), r_s_follows_d (Pearson of r_S and 2D - 1 on the
+student's pairs: whether the trainer passes on D's ranking), critic_loss and critic_loss_relative (the freeze
 test's statistics), rfdc, fs_rfdc, cpr (the paper's reward dynamics, as benchmarks/reward_dynamics.py measures them).
 """
 
@@ -463,11 +464,12 @@ def check_rile_args(args) -> None:
 def reward_measures(trainer: "SAC", disc: "Discriminator", rb: "ReplayBuffer", expert: dict, args, state: dict,
                     measures: dict, step: int) -> dict:
     """The paper's measures of the learned reward at `step`: r_S and D on the demonstrations' pairs and on the
-    student's pairs of the last --dynamics-freq steps (env states, not the absorbing loop), r_S at the absorbing
-    state, the freeze test's statistics, and the reward dynamics as benchmarks/reward_dynamics.py defines them:
-    RFDC (W1 between this interval's r_S and the previous one's), FS-RFDC (mean |change| of r_S on the
-    demonstrations' pairs), CPR (Pearson correlation of r_S and the env reward over the interval). `measures` keeps
-    the previous interval's rewards and the history (saved in checkpoints)."""
+    student's pairs of the last --dynamics-freq steps (env states, not the absorbing loop), how closely r_S follows
+    v(D) = 2D - 1 on those pairs (Pearson: the trainer's job), r_S at the absorbing state, the freeze test's
+    statistics, and the reward dynamics as benchmarks/reward_dynamics.py defines them: RFDC (W1 between this
+    interval's r_S and the previous one's), FS-RFDC (mean |change| of r_S on the demonstrations' pairs), CPR
+    (Pearson correlation of r_S and the env reward over the interval). `measures` keeps the previous interval's
+    rewards and the history (saved in checkpoints)."""
     absorbing, seen = args.termination_remedy == "absorbing", "next_obs" if args.state_only else "actions"
     n = min(args.dynamics_freq, rb.size)
     recent = rb.batch((rb.pos - 1 - torch.arange(n, device=rb.storage.device)) % rb.capacity)._asdict()
@@ -476,13 +478,15 @@ def reward_measures(trainer: "SAC", disc: "Discriminator", rb: "ReplayBuffer", e
     d_of = lambda data: disc.prob(torch.cat([data["obs"], data[seen]], -1)).cpu().numpy()
     live = lambda data: (data["obs"][:, -1] == 0).cpu().numpy() if absorbing else slice(None)  # env states
     mean = lambda x, rows: float(x[rows].mean()) if x is not None and len(x[rows]) else None
-    r_student, env_rewards = r_of(recent), recent["rewards"].cpu().numpy()
+    r_student, d_student, env_rewards = r_of(recent), d_of(recent), recent["rewards"].cpu().numpy()
     r_demos = r_of(expert) if "actions" in expert or args.trainer_obs == "transition" else None  # o_T needs a_E
     with np.errstate(invalid="ignore", divide="ignore"):  # a constant reward has no correlation
         cpr = float(np.corrcoef(r_student, env_rewards)[0, 1])
+        follows = float(np.corrcoef(r_student[live(recent)], 2 * d_student[live(recent)] - 1)[0, 1])
     last_student, last_demos = measures["interval"], measures["demos"]
     out = {"step": step, "r_s_demos": mean(r_demos, live(expert)), "r_s_student": mean(r_student, live(recent)),
-           "d_demos": mean(d_of(expert), live(expert)), "d_student": mean(d_of(recent), live(recent)),
+           "d_demos": mean(d_of(expert), live(expert)), "d_student": mean(d_student, live(recent)),
+           "r_s_follows_d": None if np.isnan(follows) else follows,
            "r_s_absorbing": None, "trainer_frozen_at": state["frozen_at"],
            "critic_loss": state["critic_loss_ema"].item() if state["trainer_updates"] else None,
            "critic_loss_relative": freeze_statistic(state, "relative") if state["trainer_updates"] else None,

@@ -3,7 +3,8 @@
 
 Columns: the student's evaluation (normalized as the file stored it: random 0, expert 1 since issue 31, x expert
 before); r_S on the demonstrations' pairs, on the student's pairs of the
-interval, their spread, and at the absorbing state; D on both; the freeze test's statistic (critic loss
+interval, their spread, and at the absorbing state; D on both; the Pearson correlation of r_S and 2D - 1 on the
+student's pairs (since 2026-12-02; "-" in older files); the freeze test's statistic (critic loss
 relative to its targets' variance); FS-RFDC and CPR; whether the trainer was frozen.
 
     python benchmarks/reward_measures.py benchmarks/results/HalfCheetah-v4/rile-gp0-autotune__1.json [more files]
@@ -13,8 +14,8 @@ import argparse
 import json
 
 COLUMNS = [("r_s_demos", "r_S demo"), ("r_s_student", "r_S stud"), ("r_s_spread", "spread"), ("r_s_absorbing", "r_S abs"),
-           ("d_demos", "D demo"), ("d_student", "D stud"), ("critic_loss_relative", "crit rel"), ("fs_rfdc", "FS-RFDC"),
-           ("cpr", "CPR")]
+           ("d_demos", "D demo"), ("d_student", "D stud"), ("r_s_follows_d", "r_S~D"), ("critic_loss_relative", "crit rel"),
+           ("fs_rfdc", "FS-RFDC"), ("cpr", "CPR")]
 
 
 def table(results: dict) -> str:

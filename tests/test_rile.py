@@ -317,6 +317,24 @@ def test_discriminator_learns_to_separate():
     assert disc.prob(expert_x).mean() > 0.9 and disc.prob(policy_x).mean() < 0.1
 
 
+def test_reward_measures_by_hand(monkeypatch):
+    """learners()' rows encode their index i in obs: with D = sigmoid(i - 10) and r_S = +-(2D - 1) exactly, the
+    last 10 rows (i = 10..19) give D and r_S means by hand, and r_S follows v(D) with correlation +1 or -1."""
+    args = tiny_args(dynamics_freq=10)
+    student, trainer, disc, rb, expert, state = learners(args)
+    prob = lambda x: torch.sigmoid(x[:, 0] - 10)  # D and the trainer both see (s, a): column 0 is i
+    monkeypatch.setattr(disc, "prob", prob)
+    for sign in (1.0, -1.0):
+        monkeypatch.setattr(rile, "student_reward", lambda actor, o_t, remedy: sign * (2 * prob(o_t) - 1))
+        memory = {"interval": None, "demos": None, "history": []}
+        out = rile.reward_measures(trainer, disc, rb, expert, args, state, memory, 20)
+        i = np.arange(10)
+        assert out["d_student"] == pytest.approx(np.mean(1 / (1 + np.exp(-i))), rel=1e-5)
+        assert out["r_s_student"] == pytest.approx(sign * np.mean(np.tanh(i / 2)), rel=1e-5)  # 2 sigmoid(x) - 1 = tanh(x / 2)
+        assert out["r_s_follows_d"] == pytest.approx(sign, abs=1e-6)
+        assert out["r_s_demos"] == pytest.approx(sign, abs=1e-6) and out["cpr"] is None  # D = 1 on demos; env reward flat
+
+
 def test_saved_reward_round_trip(tmp_path):
     args = tiny_args()
     student, trainer, disc, rb, expert, state = learners(args)
@@ -356,7 +374,8 @@ def test_end_to_end_every_update_path_then_covariate_shift(run, tmp_path):
     assert [d["step"] for d in dynamics] == [400, 600] and dynamics[1]["rfdc"] is not None
     assert results["trainer_frozen_at"] == 400 and results["reward_measures"] == dynamics
     measured = dynamics[1]
-    for key in ("r_s_demos", "r_s_student", "r_s_absorbing", "d_demos", "d_student", "critic_loss", "critic_loss_relative"):
+    for key in ("r_s_demos", "r_s_student", "r_s_absorbing", "d_demos", "d_student", "critic_loss", "critic_loss_relative",
+                "r_s_follows_d"):
         assert np.isfinite(measured[key]), key
     assert measured["r_s_spread"] == pytest.approx(measured["r_s_demos"] - measured["r_s_student"])
     assert 0 < measured["d_demos"] < 1 and measured["trainer_frozen_at"] == 400
@@ -423,8 +442,8 @@ def test_reward_measures_table(tmp_path, capsys):
     results = {"evals": [{"step": 10, "normalized": 0.123}], "reward_measures": [measure, measure | {"step": 20,
                                                                                                  "trainer_frozen_at": 15}]}
     rows = reward_measures.table(results).splitlines()
-    assert rows[1].split("\t") == ["10", "0.12", "0.500", "-0.250", "0.750", "-", "0.700", "0.300", "0.050", "-", "0.100",
-                                   "learning"]
+    assert rows[1].split("\t") == ["10", "0.12", "0.500", "-0.250", "0.750", "-", "0.700", "0.300", "-", "0.050", "-",
+                                   "0.100", "learning"]
     assert rows[2].split("\t")[1] == "-" and rows[2].endswith("frozen at 15")
     (tmp_path / "old.json").write_text(json.dumps({"evals": []}))
     with pytest.raises(SystemExit, match="no reward_measures"):
