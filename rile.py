@@ -479,13 +479,14 @@ def reward_measures(trainer: "SAC", disc: "Discriminator", rb: "ReplayBuffer", e
     live = lambda data: (data["obs"][:, -1] == 0).cpu().numpy() if absorbing else slice(None)  # env states
     mean = lambda x, rows: float(x[rows].mean()) if x is not None and len(x[rows]) else None
     r_student, d_student, env_rewards = r_of(recent), d_of(recent), recent["rewards"].cpu().numpy()
+    student_rows = live(recent)
     r_demos = r_of(expert) if "actions" in expert or args.trainer_obs == "transition" else None  # o_T needs a_E
     with np.errstate(invalid="ignore", divide="ignore"):  # a constant reward has no correlation
         cpr = float(np.corrcoef(r_student, env_rewards)[0, 1])
-        follows = float(np.corrcoef(r_student[live(recent)], 2 * d_student[live(recent)] - 1)[0, 1])
+        follows = float(np.corrcoef(r_student[student_rows], 2 * d_student[student_rows] - 1)[0, 1])
     last_student, last_demos = measures["interval"], measures["demos"]
-    out = {"step": step, "r_s_demos": mean(r_demos, live(expert)), "r_s_student": mean(r_student, live(recent)),
-           "d_demos": mean(d_of(expert), live(expert)), "d_student": mean(d_student, live(recent)),
+    out = {"step": step, "r_s_demos": mean(r_demos, live(expert)), "r_s_student": mean(r_student, student_rows),
+           "d_demos": mean(d_of(expert), live(expert)), "d_student": mean(d_student, student_rows),
            "r_s_follows_d": None if np.isnan(follows) else follows,
            "r_s_absorbing": None, "trainer_frozen_at": state["frozen_at"],
            "critic_loss": state["critic_loss_ema"].item() if state["trainer_updates"] else None,
