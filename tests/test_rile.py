@@ -429,9 +429,16 @@ def test_absorbing_states_end_to_end(run, tmp_path):
     trainer.load_state_dict(ckpt["trainer"]["actor"])
     r_abs = trainer.deterministic(torch.tensor([[0.0, 0.0, 0.0, 0.0, 1.0, 0.0]])).item()
     assert f"r_S at the absorbing state:               {r_abs:7.3f};" in out
+    # benchmarks/rile_follows_d.py: each of the run's 400 live pairs falls in one v(D) bin
+    out = run("benchmarks/rile_follows_d.py", "runs/abs", "--recent", "100000").stdout
+    live = ckpt["step"]  # one live row per env step; the absorbing loops are left out
+    binned = [line.split("student")[1].split("pairs")[0] for line in out.splitlines() if line.startswith("v(D) in")]
+    assert "student's pairs: r_S =" in out and len(binned) == 8 and sum(map(int, binned)) == live
     run("rile.py", *TINY, "--total-timesteps", "210", "--run-name", "surv", "--termination-remedy", "survival")
     proc = run("benchmarks/rile_rewards.py", "runs/surv", check=False)  # not an absorbing-state run
     assert proc.returncode != 0 and "--termination-remedy survival" in proc.stderr
+    proc = run("benchmarks/rile_follows_d.py", "runs/surv", check=False)
+    assert proc.returncode != 0 and "not a run with --termination-remedy absorbing" in proc.stderr
 
 
 def test_reward_measures_table(tmp_path, capsys):

@@ -1,0 +1,59 @@
+"""How rile.py's trainer passes D on, read from a checkpoint: r_S against v(D) = 2D - 1 on the student's
+newest pairs (a least-squares line and Pearson) and on the demonstrations, binned by v(D). Shows where the
+trainer's reward is fitted (the student's pairs) and where it is an extrapolation (the demonstrations' pairs).
+For runs with `--termination-remedy absorbing` and the trainer observing (s, a_S).
+
+    python benchmarks/rile_follows_d.py runs/bench__Hopper-v4__rile-s-pooled-alpha02__1 --recent 10000
+"""
+
+import os
+import sys
+
+import numpy as np
+import torch
+
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+import rile  # noqa: E402
+from benchmarks.airl_rewards import open_run  # noqa: E402
+
+
+def main():
+    cli, args, ckpt = open_run(rile, __doc__)
+    if args.termination_remedy != "absorbing" or args.state_only:
+        sys.exit(f"error: {cli.run_dir} is not a run with --termination-remedy absorbing on (s, a) pairs")
+    env = rile.make_env(args.env_id, args.seed)
+    obs_dim, act_dim, device = env.observation_space.shape[0], env.action_space.shape[0], torch.device("cpu")
+    trainer = rile.make_trainer(obs_dim + 1, act_dim, args, device)
+    trainer.load_state_dict(ckpt["trainer"])
+    disc = rile.Discriminator(obs_dim + 1 + act_dim, args.disc_hidden_dim, args.disc_lr, args.disc_gp, args.disc_gp_center,
+                              None, args.disc_normalize == "pooled")
+    disc.load_state_dict(ckpt["disc"])
+    rb = rile.ReplayBuffer(obs_dim + 1, act_dim, args.buffer_size, device, extra_dim=1)
+    rb.load_state_dict(ckpt["replay_buffer"])
+    demos = rile.load_demonstrations(args.expert_path or os.path.join("experts", f"{args.env_id}.npz"), env,
+                                     args.num_expert_trajs)
+    expert = rile.absorbing_expert(rile.expert_tensors(demos, args.seed, device))
+    with torch.no_grad():
+        recent = rb.batch(torch.arange(max(0, rb.size - cli.recent), rb.size))
+        live = recent.obs[:, -1] == 0  # env states, not the absorbing loop
+
+        def r_and_v(obs, actions):
+            pairs = torch.cat([obs, actions], -1)
+            return trainer.actor.deterministic(pairs).squeeze(-1).numpy(), (2 * disc.prob(pairs) - 1).numpy()
+
+        r, v = r_and_v(recent.obs[live], recent.actions[live])
+        r_demo, v_demo = r_and_v(expert["obs"], expert["actions"])
+    slope, intercept = np.polyfit(v, r, 1)
+    print(f"{cli.run_dir} at step {ckpt['step']}, trainer frozen at {ckpt['rile']['frozen_at']}")
+    print(f"student's pairs: r_S = {slope:.2f} v(D) {intercept:+.2f}, Pearson {np.corrcoef(v, r)[0, 1]:.2f}")
+    print(f"demonstrations: v(D) mean {v_demo.mean():+.2f}, r_S mean {r_demo.mean():+.2f}, "
+          f"Pearson {np.corrcoef(v_demo, r_demo)[0, 1]:.2f}")
+    for low in np.arange(-1.0, 1.0, 0.25):
+        rows = [(v >= low) & (v < low + 0.25), (v_demo >= low) & (v_demo < low + 0.25)]
+        cells = [f"{name} {int(m.sum()):6d} pairs, r_S {x[m].mean() if m.any() else float('nan'):+.2f}"
+                 for name, m, x in zip(("student", "demonstrations"), rows, (r, r_demo))]
+        print(f"v(D) in [{low:+.2f}, {low + 0.25:+.2f}): " + " | ".join(cells))
+
+
+if __name__ == "__main__":
+    main()
