@@ -615,36 +615,23 @@ def normalized_score(ret: float, random: Optional[float], expert: Optional[float
 
 # --- shared: run ---
 class Run:
-    """The run's plumbing: its directory (config.json, TensorBoard, results.json with `extra` added), evaluations every
-    --eval-freq steps, checkpoints (every `checkpoint_freq` steps, 0: none, and on Ctrl-C / SIGTERM: each `stateful`
-    object's state_dict(), a plain dict as it is, the RNG states and the progress) and --resume."""
+    """The run's directory (config.json, TensorBoard, results.json with `extra` added), an evaluation every --eval-freq
+    steps, and its `Checkpoints` (every `checkpoint_freq` steps, 0: none; on Ctrl-C / SIGTERM; --resume)."""
 
     def __init__(self, args, checkpoint: Optional[dict], stateful: dict, expert_return: Optional[float], device,
                  checkpoint_freq: int = 0, random_return: Optional[float] = None):
-        self.args, self.stateful, self.checkpoint_freq, self.extra = args, stateful, checkpoint_freq, {}
+        self.args, self.extra, self.evals, self.start_step, self.sps = args, {}, [], 0, 0.0
         self.expert_return = expert_return if expert_return is not None and np.isfinite(expert_return) else None
         self.random_return = random_return  # the normalized score's 0 (the expert's return is its 1)
-        self.evals, self.start_step, wall_time, self.sps, self.stop_signal = [], 0, 0.0, 0.0, 0
         self.name = checkpoint["run_name"] if checkpoint else args.run_name or \
             f"{args.env_id}__{args.exp_name}__{args.seed}__{int(time.time())}"
         self.dir = os.path.join("runs", self.name)
         os.makedirs(self.dir, exist_ok=True)
         save_file(os.path.join(self.dir, "config.json"), asdict(args))
         self.writer, self.machine = tensorboard(args, self.name, self.dir), machine(device)
-        if checkpoint:
-            restore(stateful, checkpoint, device)
-            self.evals, self.start_step, wall_time = checkpoint["evals"], checkpoint["step"], checkpoint["wall_time"]
-            set_rng_state(checkpoint["rng"])
-            print(f"resumed {self.dir} at step {self.start_step}")
-        signal.signal(signal.SIGINT, self.on_signal), signal.signal(signal.SIGTERM, self.on_signal)
-        self.start_time = time.time() - wall_time  # time.time() - start_time: the run's wall time, resumed or not
+        self.start_time = time.time()  # time.time() - start_time: the run's wall time (a resumed run's included)
+        self.checkpoints = Checkpoints(self, stateful, checkpoint_freq, checkpoint, device)
         self.tick = (self.start_step, time.perf_counter())  # where SPS counts from
-
-    def on_signal(self, signum, frame):
-        if self.stop_signal:  # a second Ctrl-C stops at once
-            raise KeyboardInterrupt
-        self.stop_signal = signum
-        print(f"\nsignal {signum}: saving a checkpoint at the end of this step, then exiting", flush=True)
 
     def log(self, metrics: dict, step: int) -> None:
         for name, value in metrics.items():
@@ -657,13 +644,7 @@ class Run:
             self.sps = (step - self.tick[0]) / (time.perf_counter() - self.tick[1])  # since the last evaluation
             self.evaluate(step, act)
             self.tick = (step, time.perf_counter())
-        due = self.checkpoint_freq and step % self.checkpoint_freq == 0 and step < self.args.total_timesteps
-        if self.stop_signal or due:
-            self.save_checkpoint(step)
-            if self.stop_signal:
-                print(f"checkpoint saved at step {step}; continue with: python {sys.argv[0]} --resume {self.dir}")
-                self.writer.close()
-                sys.exit(128 + self.stop_signal)
+        self.checkpoints.end_step(step)
 
     def evaluate(self, step: int, act) -> None:
         """--eval-episodes of the deterministic policy: logged, written to results.json, printed in one line."""
@@ -677,11 +658,6 @@ class Run:
         print(f"step {step}/{self.args.total_timesteps} | {self.sps:.0f} SPS | {(time.time() - self.start_time) / 60:.0f} "
               f"min | eval return {mean:.1f} +- {std:.1f}{versus}", flush=True)
 
-    def save_checkpoint(self, step: int) -> None:
-        state = {name: dict(obj) if isinstance(obj, dict) else obj.state_dict() for name, obj in self.stateful.items()}
-        save_file(os.path.join(self.dir, "checkpoint.pt"), state | dict(step=step, evals=self.evals, rng=rng_state(),
-                  wall_time=time.time() - self.start_time, config=asdict(self.args), run_name=self.name))
-
     def write_results(self, finished: bool) -> None:
         """results.json: the run's config, its evaluation curve and where it ran (format in docs/sweeps.md)."""
         final = self.evals[-1] if self.evals else {}
@@ -693,8 +669,8 @@ class Run:
 
     def finish(self, act, models: dict) -> None:
         """The last checkpoint and results.json, the models (unless --no-save-model), a video (--capture-video)."""
-        if self.checkpoint_freq:
-            self.save_checkpoint(self.args.total_timesteps)
+        if self.checkpoints.freq:
+            self.checkpoints.save(self.args.total_timesteps)
         self.write_results(finished=True)
         for filename, content in models.items() if self.args.save_model else ():
             save_file(os.path.join(self.dir, filename), content)
@@ -702,6 +678,49 @@ class Run:
             evaluate(act, self.args.env_id, 1, self.args.seed + 100_000, capture_video_dir=os.path.join(self.dir, "videos"))
         self.writer.close()
         print(f"done: {self.args.total_timesteps} steps in {(time.time() - self.start_time) / 60:.1f} min: {self.dir}")
+
+
+class Checkpoints:
+    """A run's checkpoint.pt, one dict: each `stateful` object's state_dict() (a plain dict as it is), the RNG states
+    and the run's progress. Written every `freq` env steps (0: never) and on Ctrl-C / SIGTERM; read back on --resume."""
+
+    def __init__(self, run: Run, stateful: dict, freq: int, checkpoint: Optional[dict], device):
+        self.run, self.stateful, self.freq, self.stop_signal = run, stateful, freq, 0
+        if checkpoint:
+            for name, obj in stateful.items():  # load_state_dict, or for a plain dict an update (tensors to `device`)
+                if isinstance(obj, dict):
+                    obj.update({k: v.to(device) if torch.is_tensor(v) else v for k, v in checkpoint[name].items()})
+                else:
+                    obj.load_state_dict(checkpoint[name])
+            run.evals, run.start_step = checkpoint["evals"], checkpoint["step"]
+            run.start_time -= checkpoint["wall_time"]
+            set_rng_state(checkpoint["rng"])
+            print(f"resumed {run.dir} at step {run.start_step}")
+        signal.signal(signal.SIGINT, self.on_signal), signal.signal(signal.SIGTERM, self.on_signal)
+
+    def on_signal(self, signum, frame):
+        if self.stop_signal:  # a second Ctrl-C stops at once
+            raise KeyboardInterrupt
+        self.stop_signal = signum
+        print(f"\nsignal {signum}: saving a checkpoint at the end of this step, then exiting", flush=True)
+
+    def due(self, step: int) -> bool:
+        """Whether env step `step` ends with a checkpoint: every `freq` steps before the last, or after a signal."""
+        return bool(self.stop_signal or (self.freq and step % self.freq == 0 and step < self.run.args.total_timesteps))
+
+    def end_step(self, step: int) -> None:
+        if self.due(step):
+            self.save(step)
+        if self.stop_signal:
+            print(f"checkpoint saved at step {step}; continue with: python {sys.argv[0]} --resume {self.run.dir}")
+            self.run.writer.close()
+            sys.exit(128 + self.stop_signal)
+
+    def save(self, step: int) -> None:
+        run, state = self.run, {name: dict(obj) if isinstance(obj, dict) else obj.state_dict()
+                                for name, obj in self.stateful.items()}
+        save_file(os.path.join(run.dir, "checkpoint.pt"), state | dict(step=step, evals=run.evals, rng=rng_state(),
+                  wall_time=time.time() - run.start_time, config=asdict(run.args), run_name=run.name))
 
 
 def tensorboard(args, name: str, run_dir: str):
@@ -715,15 +734,6 @@ def tensorboard(args, name: str, run_dir: str):
     table = "\n".join(f"|{k}|{v}|" for k, v in asdict(args).items())
     writer.add_text("hyperparameters", f"|param|value|\n|-|-|\n{table}")
     return writer
-
-
-def restore(stateful: dict, checkpoint: dict, device) -> None:
-    """Each object's saved state: load_state_dict, or for a plain dict an update (its tensors moved to `device`)."""
-    for name, obj in stateful.items():
-        if isinstance(obj, dict):
-            obj.update({k: v.to(device) if torch.is_tensor(v) else v for k, v in checkpoint[name].items()})
-        else:
-            obj.load_state_dict(checkpoint[name])
 
 
 def save_file(path: str, obj) -> None:
