@@ -461,49 +461,63 @@ def check_rile_args(args) -> None:
 # --- end shared: rile ---
 
 
-def reward_measures(trainer: "SAC", disc: "Discriminator", rb: "ReplayBuffer", expert: dict, args, state: dict,
-                    measures: dict, step: int) -> dict:
-    """The paper's measures of the learned reward at `step`: r_S and D on the demonstrations' pairs and on the
-    student's pairs of the last --dynamics-freq steps (env states, not the absorbing loop), how closely r_S follows
-    v(D) = 2D - 1 on those pairs (Pearson: the trainer's job), r_S at the absorbing state, the freeze test's
-    statistics, and the reward dynamics as benchmarks/reward_dynamics.py defines them: RFDC (W1 between this
-    interval's r_S and the previous one's), FS-RFDC (mean |change| of r_S on the demonstrations' pairs), CPR
-    (Pearson correlation of r_S and the env reward over the interval). `measures` keeps the previous interval's
-    rewards and the history (saved in checkpoints)."""
-    absorbing, seen = args.termination_remedy == "absorbing", "next_obs" if args.state_only else "actions"
-    n = min(args.dynamics_freq, rb.size)
+# --- shared: reward measures ---
+@torch.no_grad()
+def reward_measures(reward, disc_prob, rb: "ReplayBuffer", expert: dict, absorbing: bool, measures: dict, step: int,
+                    n: int, extra: Optional[dict] = None) -> dict:
+    """The paper's measures of the learner's reward at `step`, r_S = reward(data) (None where `data`, a dict of obs,
+    actions, next_obs, lacks what it needs) beside D = disc_prob(data): both on the demonstrations' pairs and on the
+    learner's pairs of its last `n` steps (env states, not the absorbing loop), r_s_spread (demonstrations minus
+    learner), r_s_follows_d (Pearson of r_S and v(D) = 2D - 1 on the learner's pairs), r_S at the absorbing state, and
+    the reward dynamics as benchmarks/reward_dynamics.py defines them: RFDC (W1 between this interval's r_S and the
+    previous one's), FS-RFDC (mean |change| of r_S on the demonstrations' pairs), CPR (Pearson correlation of r_S and
+    the env reward over the interval). `measures` keeps the previous interval's rewards and the history, `extra`
+    joins each entry."""
     recent = rb.batch((rb.pos - 1 - torch.arange(n, device=rb.storage.device)) % rb.capacity)._asdict()
-    r_of = lambda data: student_reward(trainer.actor, trainer_input(data["obs"], data.get("actions"), data["next_obs"],
-                                                                    args.trainer_obs), args.termination_remedy).cpu().numpy()
-    d_of = lambda data: disc.prob(torch.cat([data["obs"], data[seen]], -1)).cpu().numpy()
+    as_numpy = lambda x: None if x is None else x.cpu().numpy()
     live = lambda data: (data["obs"][:, -1] == 0).cpu().numpy() if absorbing else slice(None)  # env states
     mean = lambda x, rows: float(x[rows].mean()) if x is not None and len(x[rows]) else None
-    r_student, d_student, env_rewards = r_of(recent), d_of(recent), recent["rewards"].cpu().numpy()
-    student_rows = live(recent)
-    r_demos = r_of(expert) if "actions" in expert or args.trainer_obs == "transition" else None  # o_T needs a_E
+    r_student, d_student = as_numpy(reward(recent)), as_numpy(disc_prob(recent))
+    r_demos, rows = as_numpy(reward(expert)), live(recent)
     with np.errstate(invalid="ignore", divide="ignore"):  # a constant reward has no correlation
-        cpr = float(np.corrcoef(r_student, env_rewards)[0, 1])
-        follows = float(np.corrcoef(r_student[student_rows], 2 * d_student[student_rows] - 1)[0, 1])
+        cpr = float(np.corrcoef(r_student, recent["rewards"].cpu().numpy())[0, 1])
+        follows = float(np.corrcoef(r_student[rows], 2 * d_student[rows] - 1)[0, 1])
     last_student, last_demos = measures["interval"], measures["demos"]
-    out = {"step": step, "r_s_demos": mean(r_demos, live(expert)), "r_s_student": mean(r_student, student_rows),
-           "d_demos": mean(d_of(expert), live(expert)), "d_student": mean(d_student, student_rows),
-           "r_s_follows_d": None if np.isnan(follows) else follows,
-           "r_s_absorbing": None, "trainer_frozen_at": state["frozen_at"],
-           "critic_loss": state["critic_loss_ema"].item() if state["trainer_updates"] else None,
-           "critic_loss_relative": freeze_statistic(state, "relative") if state["trainer_updates"] else None,
+    out = {"step": step, "r_s_demos": mean(r_demos, live(expert)), "r_s_student": mean(r_student, rows),
+           "d_demos": mean(as_numpy(disc_prob(expert)), live(expert)), "d_student": mean(d_student, rows),
+           "r_s_follows_d": None if np.isnan(follows) else follows, "r_s_absorbing": None, **(extra or {}),
            "rfdc": float(np.abs(np.sort(r_student) - np.sort(last_student)).mean())
            if last_student is not None and len(last_student) == n else None,
            "fs_rfdc": float(np.abs(r_demos - last_demos).mean()) if last_demos is not None and r_demos is not None else None,
            "cpr": None if np.isnan(cpr) else cpr}
     if out["r_s_demos"] is not None:
         out["r_s_spread"] = out["r_s_demos"] - out["r_s_student"]
-    if absorbing:  # the absorbing self-loop's reward, o_T = (s_abs, 0) or (s_abs, s_abs)
+    if absorbing:  # the absorbing self-loop's reward: (s_abs, 0 action, s_abs)
         s_abs = torch.as_tensor(absorbing_state(rb.obs_dim - 1), device=rb.storage.device)[None]
-        out["r_s_absorbing"] = float(r_of({"obs": s_abs, "actions": torch.zeros_like(s_abs[:, : rb.act_dim]),
-                                            "next_obs": s_abs})[0])
+        out["r_s_absorbing"] = float(reward({"obs": s_abs, "actions": torch.zeros_like(s_abs[:, : rb.act_dim]),
+                                             "next_obs": s_abs})[0])
     measures.update(interval=r_student, demos=r_demos)
     measures["history"].append(out)
     return out
+# --- end shared: reward measures ---
+
+
+def rile_measures(trainer: "SAC", disc: "Discriminator", rb: "ReplayBuffer", expert: dict, args, state: dict,
+                  measures: dict, step: int) -> dict:
+    """reward_measures for RILe's r_S (the trainer's action; r_s_follows_d: whether the trainer passes D on), with the
+    freeze test's statistics, every --dynamics-freq steps."""
+    seen = "next_obs" if args.state_only else "actions"
+
+    def r_student(data):  # o_T needs the student's action, which the demonstrations lack with --state-only
+        if "actions" not in data and args.trainer_obs != "transition":
+            return None
+        o_t = trainer_input(data["obs"], data.get("actions"), data["next_obs"], args.trainer_obs)
+        return student_reward(trainer.actor, o_t, args.termination_remedy)
+    learning = state["trainer_updates"] > 0
+    extra = {"trainer_frozen_at": state["frozen_at"], "critic_loss": state["critic_loss_ema"].item() if learning else None,
+             "critic_loss_relative": freeze_statistic(state, "relative") if learning else None}
+    return reward_measures(r_student, lambda data: disc.prob(torch.cat([data["obs"], data[seen]], -1)), rb, expert,
+                           args.termination_remedy == "absorbing", measures, step, min(args.dynamics_freq, rb.size), extra)
 
 
 def reward_file(trainer: "SAC", disc: "Discriminator", args, obs_dim: int, act_dim: int) -> dict:
@@ -1138,7 +1152,7 @@ if __name__ == "__main__":
 
         step = global_step + 1
         if args.dynamics_freq and step % args.dynamics_freq == 0 and step > args.learning_starts:
-            out = reward_measures(trainer, disc, rb, expert, args, state, measures, step)
+            out = rile_measures(trainer, disc, rb, expert, args, state, measures, step)
             run.log({f"dynamics/{key}": value for key, value in out.items() if key != "step"}, step)
             run.extra["trainer_frozen_at"] = state["frozen_at"]
             save_file(os.path.join(run.dir, "dynamics.json"), measures["history"])

@@ -1,6 +1,6 @@
 """Reward-function dynamics (the RILe paper's RFDC, FS-RFDC and CPR) for rile.py, gail.py and airl.py alike.
 
-rile.py logs them itself (`--dynamics-freq`, runs/<run>/dynamics.json); gail.py and airl.py do not. This
+rile.py and gail.py log them themselves (`--dynamics-freq`, runs/<run>/dynamics.json); airl.py does not. This
 tool measures all three the same way, from outside: a run is trained in segments (`--resume` with a
 larger `--total-timesteps` each time, the scripts' own code path), and after every segment its learned
 reward (reward.pt), its actor (actor.pt) and the segment's transitions (the newest rows of the

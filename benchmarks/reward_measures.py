@@ -1,4 +1,4 @@
-"""What rile.py's learned reward paid over a run, from its results file: one row per measure (every
+"""What rile.py's (or gail.py's) learned reward paid over a run, from its results file: one row per measure (every
 --dynamics-freq steps), beside the evaluation at that step.
 
 Columns: the student's evaluation (normalized as the file stored it: random 0, expert 1 since issue 31, x expert
@@ -38,7 +38,7 @@ def main(argv=None):
         with open(path) as f:
             results = json.load(f)
         if not results.get("reward_measures"):
-            raise SystemExit(f"error: {path} has no reward_measures; rile.py runs write them (since issue 28)")
+            raise SystemExit(f"error: {path} has no reward_measures; rile.py runs write them (since issue 28), gail.py runs since issue 29")
         print(f"{path}: trainer frozen at {results.get('trainer_frozen_at')}\n{table(results)}\n")
 
 

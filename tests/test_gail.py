@@ -49,15 +49,46 @@ def test_rewards_are_relabelled_from_the_current_discriminator(monkeypatch):
     assert seen[1][0].mean() > seen[0][0].mean() + 4
 
 
+def test_reward_measures_by_hand():
+    """Rows i = 0..29, obs (i, indicator 0), env reward i. With D = sigmoid(i - 10) and r_S = -log(1 - D) = log(1 + e^(i - 10))
+    the measures over the newest 10 rows are sums by hand; the absorbing state (0, 1) reads i = 0."""
+    softplus, sigmoid = lambda x: np.log1p(np.exp(x)), lambda x: 1 / (1 + np.exp(-x))
+    logit = lambda data: data["obs"][:, 0] - 10
+    rb = gail.ReplayBuffer(2, 1, 40, "cpu")
+    expert = {"obs": torch.tensor([[12.0, 0.0], [0.0, 1.0]]), "actions": torch.zeros(2, 1), "next_obs": torch.zeros(2, 2)}
+    memory, outs = {"interval": None, "demos": None, "history": []}, []
+    for end in (20, 30):
+        for i in range(rb.size, end):
+            rb.add(np.array([i, 0.0]), np.zeros(1), np.array([i + 1, 0.0]), float(i), False)
+        outs.append(gail.reward_measures(lambda d: torch.nn.functional.softplus(logit(d)), lambda d: torch.sigmoid(logit(d)),
+                                         rb, expert, True, memory, end, 10))
+    i = np.arange(10, 20, dtype=np.float64)
+    first, second = outs
+    assert first["d_student"] == pytest.approx(sigmoid(i - 10).mean(), rel=1e-5)
+    assert first["r_s_student"] == pytest.approx(softplus(i - 10).mean(), rel=1e-5)
+    assert first["d_demos"] == pytest.approx(sigmoid(2.0), rel=1e-5)  # the live demonstration row only
+    assert first["r_s_spread"] == pytest.approx(softplus(2.0) - softplus(i - 10).mean(), rel=1e-5)
+    assert first["r_s_absorbing"] == pytest.approx(softplus(-10.0), rel=1e-4)
+    assert first["cpr"] == pytest.approx(np.corrcoef(softplus(i - 10), i)[0, 1], rel=1e-5)
+    assert first["rfdc"] is None and first["fs_rfdc"] is None
+    assert second["rfdc"] == pytest.approx((softplus(i) - softplus(i - 10)).mean(), rel=1e-5)  # W1 of the two intervals
+    assert second["fs_rfdc"] == 0.0 and memory["history"] == outs
+
+
 def test_end_to_end(run, tmp_path):
     out = run("gail.py", "--env-id", "InvertedPendulum-v4", "--total-timesteps", "500", "--learning-starts", "200",
               "--eval-freq", "250", "--eval-episodes", "2", "--hidden-dim", "32", "--batch-size", "32",
               "--num-expert-trajs", "2", "--expert-path", str(ROOT / "experts/InvertedPendulum-v4.npz"),
-              "--reward-form", "logit", "--expert-state-noise", "0.1", "--run-name", "g",
+              "--reward-form", "logit", "--expert-state-noise", "0.1", "--run-name", "g", "--dynamics-freq", "250",
               "--termination-remedy", "absorbing").stdout  # DAC's combination: logit reward, absorbing states
     assert "GAIL reward: logit" in out
     results = json.loads((tmp_path / "runs/g/results.json").read_text())
     assert results["finished"] and [e["step"] for e in results["evals"]] == [250, 500]
+    measures = results["reward_measures"]
+    assert [m["step"] for m in measures] == [250, 500]
+    assert measures == json.loads((tmp_path / "runs/g/dynamics.json").read_text())
+    for key in ("r_s_demos", "r_s_student", "r_s_absorbing", "d_demos", "rfdc", "fs_rfdc"):
+        assert np.isfinite(measures[1][key]), key
     assert results["expert_return"] == pytest.approx(1000.0)
     with np.load(ROOT / "experts/InvertedPendulum-v4.npz") as f:  # normalized: random actions 0, the expert 1
         random = json.loads(str(f["metadata"]))["random_return"]

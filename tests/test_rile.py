@@ -327,7 +327,7 @@ def test_reward_measures_by_hand(monkeypatch):
     for sign in (1.0, -1.0):
         monkeypatch.setattr(rile, "student_reward", lambda actor, o_t, remedy: sign * (2 * prob(o_t) - 1))
         memory = {"interval": None, "demos": None, "history": []}
-        out = rile.reward_measures(trainer, disc, rb, expert, args, state, memory, 20)
+        out = rile.rile_measures(trainer, disc, rb, expert, args, state, memory, 20)
         i = np.arange(10)
         assert out["d_student"] == pytest.approx(np.mean(1 / (1 + np.exp(-i))), rel=1e-5)
         assert out["r_s_student"] == pytest.approx(sign * np.mean(np.tanh(i / 2)), rel=1e-5)  # 2 sigmoid(x) - 1 = tanh(x / 2)
