@@ -22,7 +22,10 @@ Implementation choices and deviations
 
 Logged metrics: charts/episodic_return, charts/SPS, eval/return, eval/normalized_return,
 losses/{qf_loss,qf_values,actor_loss,alpha_loss,alpha,entropy}, losses/disc_loss, losses/disc_gp,
-disc/expert_prob, disc/policy_prob, reward/learned_mean, reward/learned_std.
+disc/expert_prob, disc/policy_prob, reward/learned_mean, reward/learned_std. Every --dynamics-freq steps, in
+TensorBoard (dynamics/<name>), dynamics.json and results.json ("reward_measures"), the paper's measures of the learned
+reward, named as rile.py names them (r_S: GAIfO's reward, D on (s, s')): r_s_demos, r_s_student, r_s_spread,
+r_s_absorbing, d_demos, d_student, r_s_follows_d, rfdc, fs_rfdc, cpr (`reward_measures`).
 """
 
 import json
@@ -135,6 +138,9 @@ class Args:
     """use the first this many demonstration episodes"""
     expert_state_noise: float = 0.0
     """std of Gaussian noise added to the expert's states (noise-robustness experiment)"""
+    dynamics_freq: int = 10_000
+    """measure the learned reward every this many steps: r_S and D on demonstrations and student, RFDC, FS-RFDC, CPR
+    (0 disables)"""
 
 
 # ALGO LOGIC: the discriminator, then GAIL's reward and update, here on transitions (s, s')
@@ -245,6 +251,47 @@ def gail_update(agent: "SAC", disc: nn.Module, rb: "ReplayBuffer", expert: dict,
     expert_x = torch.cat([expert["obs"][idx], expert[seen][idx]], -1)
     return metrics | disc.update(expert_x, torch.cat([policy.obs, getattr(policy, seen)], -1))
 # --- end shared: gail ---
+
+
+# --- shared: reward measures ---
+@torch.no_grad()
+def reward_measures(reward, disc_prob, rb: "ReplayBuffer", expert: dict, absorbing: bool, measures: dict, step: int,
+                    n: int, extra: Optional[dict] = None) -> dict:
+    """The paper's measures of the learner's reward at `step`, r_S = reward(data) (None where `data`, a dict of obs,
+    actions, next_obs, lacks what it needs) beside D = disc_prob(data): both on the demonstrations' pairs and on the
+    learner's pairs of its last `n` steps (env states, not the absorbing loop), r_s_spread (demonstrations minus
+    learner), r_s_follows_d (Pearson of r_S and v(D) = 2D - 1 on the learner's pairs), r_S at the absorbing state, and
+    the reward dynamics as benchmarks/reward_dynamics.py defines them: RFDC (W1 between this interval's r_S and the
+    previous one's), FS-RFDC (mean |change| of r_S on the demonstrations' pairs), CPR (Pearson correlation of r_S and
+    the env reward over the interval). `measures` keeps the previous interval's rewards and the history, `extra`
+    joins each entry."""
+    recent = rb.batch((rb.pos - 1 - torch.arange(n, device=rb.storage.device)) % rb.capacity)._asdict()
+    as_numpy = lambda x: None if x is None else x.cpu().numpy()
+    live = lambda data: (data["obs"][:, -1] == 0).cpu().numpy() if absorbing else slice(None)  # env states
+    mean = lambda x, rows: float(x[rows].mean()) if x is not None and len(x[rows]) else None
+    r_student, d_student = as_numpy(reward(recent)), as_numpy(disc_prob(recent))
+    r_demos, rows = as_numpy(reward(expert)), live(recent)
+    with np.errstate(invalid="ignore", divide="ignore"):  # a constant reward has no correlation
+        cpr = float(np.corrcoef(r_student, recent["rewards"].cpu().numpy())[0, 1])
+        follows = float(np.corrcoef(r_student[rows], 2 * d_student[rows] - 1)[0, 1])
+    last_student, last_demos = measures["interval"], measures["demos"]
+    out = {"step": step, "r_s_demos": mean(r_demos, live(expert)), "r_s_student": mean(r_student, rows),
+           "d_demos": mean(as_numpy(disc_prob(expert)), live(expert)), "d_student": mean(d_student, rows),
+           "r_s_follows_d": None if np.isnan(follows) else follows, "r_s_absorbing": None, **(extra or {}),
+           "rfdc": float(np.abs(np.sort(r_student) - np.sort(last_student)).mean())
+           if last_student is not None and len(last_student) == n else None,
+           "fs_rfdc": float(np.abs(r_demos - last_demos).mean()) if last_demos is not None and r_demos is not None else None,
+           "cpr": None if np.isnan(cpr) else cpr}
+    if out["r_s_demos"] is not None:
+        out["r_s_spread"] = out["r_s_demos"] - out["r_s_student"]
+    if absorbing:  # the absorbing self-loop's reward: (s_abs, 0 action, s_abs)
+        s_abs = torch.as_tensor(absorbing_state(rb.obs_dim - 1), device=rb.storage.device)[None]
+        out["r_s_absorbing"] = float(reward({"obs": s_abs, "actions": torch.zeros_like(s_abs[:, : rb.act_dim]),
+                                             "next_obs": s_abs, "terminations": s_abs[:, 0]})[0])
+    measures.update(interval=r_student, demos=r_demos)
+    measures["history"].append(out)
+    return out
+# --- end shared: reward measures ---
 
 
 # --- shared: env ---
@@ -814,9 +861,13 @@ if __name__ == "__main__":
     disc = Discriminator(2 * aug_dim, args.disc_hidden_dim, args.disc_lr, args.disc_gp, args.disc_gp_center,
                          stats, args.disc_normalize == "pooled").to(device)
     rb = ReplayBuffer(aug_dim, act_dim, args.buffer_size, device)
-    stateful = {"agent": agent, "disc": disc, "disc_optimizer": disc.optimizer, "replay_buffer": rb}
+    measures = {"interval": None, "demos": None, "history": []}  # reward_measures' memory
+    stateful = {"agent": agent, "disc": disc, "disc_optimizer": disc.optimizer, "replay_buffer": rb, "measures": measures}
     run = Run(args, checkpoint, stateful, float(demos["episode_returns"].mean()), device,
               checkpoint_freq=args.checkpoint_freq, random_return=demos["metadata"]["random_return"])
+    run.extra = {"reward_measures": measures["history"]}
+    disc_input = lambda data: torch.cat([data["obs"], data["next_obs"]], -1)
+    r_of, d_of = lambda data: gail_reward(disc(disc_input(data)), args.reward_form), lambda data: disc.prob(disc_input(data))
 
     # TRY NOT TO MODIFY: start the game
     obs, _ = env.reset(seed=args.seed + run.start_step)
@@ -839,7 +890,13 @@ if __name__ == "__main__":
                                   update_disc=global_step % args.disc_update_every == 0)
             if global_step % 1000 == 0:
                 run.log(metrics, global_step)
-        run.end_step(global_step + 1, agent.actor.act)
+
+        step = global_step + 1
+        if args.dynamics_freq and step % args.dynamics_freq == 0 and step > args.learning_starts:
+            out = reward_measures(r_of, d_of, rb, expert, absorbing, measures, step, min(args.dynamics_freq, rb.size))
+            run.log({f"dynamics/{key}": value for key, value in out.items() if key != "step"}, step)
+            save_file(os.path.join(run.dir, "dynamics.json"), measures["history"])
+        run.end_step(step, agent.actor.act)
 
     reward_file = {"disc": disc.state_dict(), "env_id": args.env_id, "obs_dim": obs_dim, "act_dim": act_dim,
                    "disc_hidden_dim": args.disc_hidden_dim, "reward_form": args.reward_form,

@@ -301,7 +301,7 @@ def reward_measures(reward, disc_prob, rb: "ReplayBuffer", expert: dict, absorbi
     if absorbing:  # the absorbing self-loop's reward: (s_abs, 0 action, s_abs)
         s_abs = torch.as_tensor(absorbing_state(rb.obs_dim - 1), device=rb.storage.device)[None]
         out["r_s_absorbing"] = float(reward({"obs": s_abs, "actions": torch.zeros_like(s_abs[:, : rb.act_dim]),
-                                             "next_obs": s_abs})[0])
+                                             "next_obs": s_abs, "terminations": s_abs[:, 0]})[0])
     measures.update(interval=r_student, demos=r_demos)
     measures["history"].append(out)
     return out
@@ -880,6 +880,7 @@ if __name__ == "__main__":
               checkpoint_freq=args.checkpoint_freq, random_return=demos["metadata"]["random_return"])
     run.extra = {"reward_measures": measures["history"]}
     disc_input = lambda data: torch.cat([data["obs"], data["actions"]], -1)
+    r_of, d_of = lambda data: gail_reward(disc(disc_input(data)), args.reward_form), lambda data: disc.prob(disc_input(data))
 
     # TRY NOT TO MODIFY: start the game
     obs, _ = env.reset(seed=args.seed + run.start_step)
@@ -904,9 +905,7 @@ if __name__ == "__main__":
 
         step = global_step + 1
         if args.dynamics_freq and step % args.dynamics_freq == 0 and step > args.learning_starts:
-            out = reward_measures(lambda data: gail_reward(disc(disc_input(data)), args.reward_form),
-                                  lambda data: disc.prob(disc_input(data)), rb, expert, absorbing, measures, step,
-                                  min(args.dynamics_freq, rb.size))
+            out = reward_measures(r_of, d_of, rb, expert, absorbing, measures, step, min(args.dynamics_freq, rb.size))
             run.log({f"dynamics/{key}": value for key, value in out.items() if key != "step"}, step)
             save_file(os.path.join(run.dir, "dynamics.json"), measures["history"])
         run.end_step(step, agent.actor.act)

@@ -495,7 +495,7 @@ def reward_measures(reward, disc_prob, rb: "ReplayBuffer", expert: dict, absorbi
     if absorbing:  # the absorbing self-loop's reward: (s_abs, 0 action, s_abs)
         s_abs = torch.as_tensor(absorbing_state(rb.obs_dim - 1), device=rb.storage.device)[None]
         out["r_s_absorbing"] = float(reward({"obs": s_abs, "actions": torch.zeros_like(s_abs[:, : rb.act_dim]),
-                                             "next_obs": s_abs})[0])
+                                             "next_obs": s_abs, "terminations": s_abs[:, 0]})[0])
     measures.update(interval=r_student, demos=r_demos)
     measures["history"].append(out)
     return out

@@ -1,5 +1,5 @@
-"""What rile.py's (or gail.py's) learned reward paid over a run, from its results file: one row per measure (every
---dynamics-freq steps), beside the evaluation at that step.
+"""What a learned reward paid over a run (rile.py's; gail.py's, gaifo.py's, airl.py's since issue 29), from its results
+file: one row per measure (every --dynamics-freq steps), beside the evaluation at that step.
 
 Columns: the student's evaluation (normalized as the file stored it: random 0, expert 1 since issue 31, x expert
 before); r_S on the demonstrations' pairs, on the student's pairs of the
@@ -25,21 +25,23 @@ def table(results: dict) -> str:
     for m in results.get("reward_measures") or []:
         cells = [f"{m[key]:.3f}" if m.get(key) is not None else "-" for key, _ in COLUMNS]
         frozen = m.get("trainer_frozen_at")
+        trainer = "-" if "trainer_frozen_at" not in m else "learning" if frozen is None else f"frozen at {frozen}"
         score = normalized.get(m["step"])
-        rows.append(f"{m['step']}\t{'-' if score is None else f'{score:.2f}'}\t" + "\t".join(cells)
-                    + f"\t{'learning' if frozen is None else f'frozen at {frozen}'}")
+        rows.append(f"{m['step']}\t{'-' if score is None else f'{score:.2f}'}\t" + "\t".join(cells) + f"\t{trainer}")
     return "\n".join(rows)
 
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("files", nargs="+", help="results files of rile.py runs")
+    parser.add_argument("files", nargs="+", help="results files of rile.py, gail.py, gaifo.py or airl.py runs")
     for path in parser.parse_args(argv).files:
         with open(path) as f:
             results = json.load(f)
         if not results.get("reward_measures"):
-            raise SystemExit(f"error: {path} has no reward_measures; rile.py runs write them (since issue 28), gail.py runs since issue 29")
-        print(f"{path}: trainer frozen at {results.get('trainer_frozen_at')}\n{table(results)}\n")
+            raise SystemExit(f"error: {path} has no reward_measures; rile.py runs write them since issue 28, "
+                             "gail.py, gaifo.py and airl.py runs since issue 29")
+        frozen = f": trainer frozen at {results['trainer_frozen_at']}" if "trainer_frozen_at" in results else ""
+        print(f"{path}{frozen}\n{table(results)}\n")
 
 
 if __name__ == "__main__":

@@ -98,7 +98,8 @@ def test_state_only_reward_ignores_actions(monkeypatch):
 def test_end_to_end(run, tmp_path):
     common = ["--env-id", "InvertedPendulum-v4", "--total-timesteps", "500", "--learning-starts", "200",
               "--eval-freq", "250", "--eval-episodes", "2", "--hidden-dim", "32", "--batch-size", "32",
-              "--num-expert-trajs", "2", "--expert-path", str(ROOT / "experts/InvertedPendulum-v4.npz")]
+              "--num-expert-trajs", "2", "--expert-path", str(ROOT / "experts/InvertedPendulum-v4.npz"),
+              "--dynamics-freq", "250"]
     out = run("airl.py", *common, "--run-name", "a", "--expert-action-noise", "0.2", "--disc-policy-mix", "0.1").stdout
     assert "AIRL reward: softplus" in out  # the default, with terminations terminal
     out = run("airl.py", *common, "--run-name", "b", "--reward", "g", "--state-only", "--termination-remedy", "absorbing",
@@ -106,6 +107,10 @@ def test_end_to_end(run, tmp_path):
     assert "AIRL reward: g (state-only g)" in out
     results = json.loads((tmp_path / "runs/b/results.json").read_text())
     assert results["finished"] and [e["step"] for e in results["evals"]] == [250, 500]
+    keys = {"a": ("r_s_demos", "r_s_student", "d_demos", "d_student", "rfdc"), "b": ("r_s_absorbing", "fs_rfdc")}
+    for name, keys in keys.items():
+        measures = json.loads((tmp_path / f"runs/{name}/results.json").read_text())["reward_measures"]  # the paper's measures
+        assert [m["step"] for m in measures] == [250, 500] and all(np.isfinite(measures[1][k]) for k in keys), name
     saved = torch.load(tmp_path / "runs/b/reward.pt", weights_only=True)
     assert saved["state_only"] and saved["g"]["0.weight"].shape[1] == 5  # g(s) of the 4-d state + absorbing indicator
     # the reward check reads the checkpoint: f on the demonstrations, on the learner, and what falling is worth

@@ -53,9 +53,12 @@ def test_end_to_end(run, tmp_path):
     out = run("gaifo.py", "--env-id", "InvertedPendulum-v4", "--total-timesteps", "500", "--learning-starts", "200",
               "--eval-freq", "250", "--eval-episodes", "2", "--hidden-dim", "32", "--batch-size", "32",
               "--num-expert-trajs", "2", "--expert-path", str(ROOT / "experts/InvertedPendulum-v4.npz"),
-              "--expert-state-noise", "0.05", "--run-name", "g", "--termination-remedy", "absorbing").stdout
+              "--expert-state-noise", "0.05", "--run-name", "g", "--termination-remedy", "absorbing",
+              "--dynamics-freq", "250").stdout
     assert "GAIfO reward: softplus" in out
     results = json.loads((tmp_path / "runs/g/results.json").read_text())
     assert results["finished"] and [e["step"] for e in results["evals"]] == [250, 500]
+    measured = results["reward_measures"][-1]  # the paper's measures, on (s, s') pairs: the demonstrations' need no actions
+    assert all(np.isfinite(measured[k]) for k in ("r_s_demos", "r_s_student", "r_s_absorbing", "d_demos", "rfdc", "fs_rfdc"))
     ckpt = torch.load(tmp_path / "runs/g/checkpoint.pt", weights_only=False)
     assert ckpt["disc"]["net.0.weight"].shape[1] == 2 * (4 + 1) and ckpt["disc_optimizer"]["state"]  # (s, s') + indicators
