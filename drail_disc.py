@@ -31,7 +31,8 @@ Implementation choices and deviations
 6. From states only (`--state-only`): x0 = (s, s'), both halves standardised with the expert's state
    statistics, in both variants (DRAIL-GAIL becomes a diffusion GAIfO); the demonstrations' actions are
    never loaded. DRAIL-RILe's trainer observes (s, a_S) or, with `--trainer-obs transition`, (s, s'), as in
-   rile.py (its choice 9), with the same refusals.
+   rile.py (its choice 10), with the same refusals. Its trainer batches hold no expert pairs by default
+   (`--trainer-expert-fraction 0`, the paper's; rile.py's choice 8 puts a tenth there).
 
 Logged metrics (both variants; trainer_* in DRAIL-RILe only): charts/episodic_return, charts/SPS, eval/return,
 eval/normalized_return, losses/{student,trainer}_{qf_loss,qf_values,actor_loss,alpha_loss,alpha,entropy},
@@ -455,8 +456,10 @@ def rile_state(device) -> dict:
             "target_var_ema": inf.clone(), "below_since": None}
 
 
-def check_rile_args(args) -> None:
-    """What the flags rule out, as one-line errors."""
+def check_rile_args(args):
+    """What the flags rule out, as one-line errors; returns args with the defaults that depend on other flags set."""
+    if args.trainer_expert_fraction is None:  # expert pairs in the trainer's batches need the expert's actions
+        args = replace(args, trainer_expert_fraction=0.0 if args.state_only else 0.1)
     if args.trainer_obs == "transition" and not args.state_only:
         raise SystemExit("error: --trainer-obs transition goes with --state-only (a discriminator on transitions)")
     given = asdict(args)
@@ -466,6 +469,7 @@ def check_rile_args(args) -> None:
     for name in ("expert_action_noise", "student_expert_fraction", "trainer_expert_fraction"):
         if args.state_only and given[name] > 0:
             raise SystemExit(f"error: --{name.replace('_', '-')} needs the expert's actions, which --state-only does not use")
+    return args
 # --- end shared: rile ---
 
 
@@ -1017,7 +1021,7 @@ if __name__ == "__main__":
     args, checkpoint = resume(args) if args.resume else (args, None)
     if args.disc_batch_size % 2:
         raise SystemExit("error: --disc-batch-size must be even (antithetic timestep sampling)")
-    check_rile_args(args)
+    args = check_rile_args(args)
     torch.set_num_threads(args.threads)
     device = torch.device("cuda" if torch.cuda.is_available() and args.cuda else "cpu")
     seed_everything(args.seed, args.torch_deterministic)

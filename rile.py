@@ -40,12 +40,19 @@ Implementation choices and deviations
    a self-looping state whose reward the trainer learns from D like any other pair's (see `store`).
 7. Epsilon-greedy (`--epsilon` 0.2). The trainer's temperature is the paper's fixed 0.2; the student's is tuned
    towards -|A| (`--no-autotune`: 0.2, which pays more for entropy than r_S in [-1, 1] pays for imitation).
-8. The paper's experiments as flags: `--trainer-reward` (the ablation's six rewards); `--expert-action-noise` /
+8. A tenth of every trainer batch is expert pairs, each with a fresh a_T (`--trainer-expert-fraction 0.1`; 0 with
+   --state-only, whose demonstrations have no actions for o_T). The paper's best run has none (`--trainer-expert-fraction
+   0`); its explicit-expert-data experiment reports that expert data "accelerates RILe's convergence" and lowers the
+   final score. Without them the trainer is fitted on the student's pairs only and its reward is flat beyond them
+   (benchmarks/rile_follows_d.py): on Hopper-v4 it paid the demonstrations no more than the student's best pairs
+   and the student stood (0.30-0.33 in three 200k runs); with them r_S rises with D up to the demonstrations'
+   pairs and the student hops (docs/reward-that-teaches.md).
+9. The paper's experiments as flags: `--trainer-reward` (the ablation's six rewards); `--expert-action-noise` /
    `--expert-state-noise` (noise added once to the demonstrations); `--reward-from runs/<run>/reward.pt` with
    `--student-action-noise` (covariate shift: a fresh student against a saved, frozen trainer);
-   `--student-expert-fraction` / `--trainer-expert-fraction` (that share of each batch is expert pairs, with a
-   fresh a_T in the trainer's); the reward measures every `--dynamics-freq` steps (below).
-9. From states only (`--state-only`, the paper's LocoMuJoCo regime): D scores (s, s') as in GAIfO. The trainer
+   `--student-expert-fraction` / `--trainer-expert-fraction` (that share of each batch is expert pairs); the reward
+   measures every `--dynamics-freq` steps (below).
+10. From states only (`--state-only`, the paper's LocoMuJoCo regime): D scores (s, s') as in GAIfO. The trainer
    still observes (s, a_S), of which s' = f(s, a_S) is a function; `--trainer-obs transition` makes it observe
    (s, s'), with (s', s'') as stored next. Options that need expert actions are refused.
 
@@ -210,8 +217,9 @@ class Args:
     """std of Gaussian noise added to the expert's states (noise-robustness experiment)"""
     student_expert_fraction: float = 0.0
     """share of every student batch drawn from expert pairs (explicit-expert-data experiment)"""
-    trainer_expert_fraction: float = 0.0
-    """share of every trainer batch drawn from expert pairs (explicit-expert-data experiment)"""
+    trainer_expert_fraction: Optional[float] = None
+    """share of every trainer batch drawn from expert pairs (default: 0.1, 0 with --state-only; the paper's best run: 0;
+    rile.py's header, choice 8)"""
     reward_from: Optional[str] = None
     """covariate shift: train a fresh student against this saved, frozen reward (runs/<run>/reward.pt)"""
     student_action_noise: float = 0.0
@@ -447,8 +455,10 @@ def rile_state(device) -> dict:
             "target_var_ema": inf.clone(), "below_since": None}
 
 
-def check_rile_args(args) -> None:
-    """What the flags rule out, as one-line errors."""
+def check_rile_args(args):
+    """What the flags rule out, as one-line errors; returns args with the defaults that depend on other flags set."""
+    if args.trainer_expert_fraction is None:  # expert pairs in the trainer's batches need the expert's actions
+        args = replace(args, trainer_expert_fraction=0.0 if args.state_only else 0.1)
     if args.trainer_obs == "transition" and not args.state_only:
         raise SystemExit("error: --trainer-obs transition goes with --state-only (a discriminator on transitions)")
     given = asdict(args)
@@ -458,6 +468,7 @@ def check_rile_args(args) -> None:
     for name in ("expert_action_noise", "student_expert_fraction", "trainer_expert_fraction"):
         if args.state_only and given[name] > 0:
             raise SystemExit(f"error: --{name.replace('_', '-')} needs the expert's actions, which --state-only does not use")
+    return args
 # --- end shared: rile ---
 
 
@@ -1091,7 +1102,7 @@ def resume(args, keep=("total_timesteps", "cuda", "threads")):
 if __name__ == "__main__":
     args = tyro.cli(Args)
     args, checkpoint = resume(args) if args.resume else (args, None)
-    check_rile_args(args)
+    args = check_rile_args(args)
     torch.set_num_threads(args.threads)
     device = torch.device("cuda" if torch.cuda.is_available() and args.cuda else "cpu")
     seed_everything(args.seed, args.torch_deterministic)

@@ -17,7 +17,7 @@ OBS, ACT = 3, 2
 
 def tiny_args(**kw):
     base = dict(hidden_dim=16, trainer_hidden_dim=16, batch_size=8, trainer_batch_size=8, disc_batch_size=4,
-                disc_hidden_dim=8, trainer_buffer_size=6, disc_buffer_size=6,
+                disc_hidden_dim=8, trainer_buffer_size=6, disc_buffer_size=6, trainer_expert_fraction=0.0,
                 termination_remedy="survival")  # learners() below has no absorbing indicator
     return rile.Args(**(base | kw))
 
@@ -206,6 +206,16 @@ def test_expert_fractions_put_that_share_of_expert_pairs_in_the_batches(monkeypa
     n = round(fraction * args.trainer_batch_size)
     assert (trainer_obs[:n, 0] >= 100).all() and (trainer_obs[n:, 0] < 100).all()
     assert torch.allclose(trainer_obs[:n, OBS:], torch.full((n, ACT), 0.5))  # expert actions in o_T
+
+
+def test_the_trainer_sees_a_tenth_of_expert_pairs_unless_it_cannot():
+    """The default share of expert pairs in the trainer's batches (header, choice 8): 0.1, and 0 with --state-only, where
+    the trainer's o_T = (s, a_S) has no expert action to take; a share given on the command line stays as it is."""
+    assert rile.check_rile_args(rile.Args()).trainer_expert_fraction == 0.1
+    assert rile.check_rile_args(rile.Args(state_only=True)).trainer_expert_fraction == 0.0
+    assert rile.check_rile_args(rile.Args(trainer_expert_fraction=0.0)).trainer_expert_fraction == 0.0
+    with pytest.raises(SystemExit, match="--trainer-expert-fraction needs the expert's actions"):
+        rile.check_rile_args(rile.Args(state_only=True, trainer_expert_fraction=0.1))
 
 
 def test_noise_options_change_what_they_say_and_nothing_else():
