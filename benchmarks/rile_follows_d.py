@@ -1,7 +1,10 @@
 """How rile.py's trainer passes D on, read from a checkpoint: r_S against v(D) = 2D - 1 on the student's
 newest pairs (a least-squares line and Pearson) and on the demonstrations, binned by v(D). Shows where the
 trainer's reward is fitted (the student's pairs) and where it is an extrapolation (the demonstrations' pairs).
-For runs with `--termination-remedy absorbing` and the trainer observing (s, a_S).
+Then the freeze test's statistic on one batch of the trainer's window (its two critics' TD loss relative to the
+variance of their targets) beside the same loss relative to the variance of the reward r_T itself: whether the
+critic has resolved what its action controls. For runs with `--termination-remedy absorbing` and the trainer
+observing (s, a_S).
 
     python benchmarks/rile_follows_d.py runs/bench__Hopper-v4__rile-s-pooled-alpha02__1 --recent 10000
 """
@@ -25,6 +28,8 @@ def main():
     obs_dim, act_dim, device = env.observation_space.shape[0], env.action_space.shape[0], torch.device("cpu")
     trainer = rile.make_trainer(obs_dim + 1, act_dim, args, device)
     trainer.load_state_dict(ckpt["trainer"])
+    student = rile.SAC(obs_dim + 1, act_dim, env.action_space.low, env.action_space.high, args, device, absorbing=True)
+    student.load_state_dict(ckpt["student"])
     disc = rile.Discriminator(obs_dim + 1 + act_dim, args.disc_hidden_dim, args.disc_lr, args.disc_gp, args.disc_gp_center,
                               None, args.disc_normalize == "pooled")
     disc.load_state_dict(ckpt["disc"])
@@ -53,6 +58,16 @@ def main():
         cells = [f"{name} {int(m.sum()):6d} pairs, r_S {x[m].mean() if m.any() else float('nan'):+.2f}"
                  for name, m, x in zip(("student", "demonstrations"), rows, (r, r_demo))]
         print(f"v(D) in [{low:+.2f}, {low + 0.25:+.2f}): " + " | ".join(cells))
+    with torch.no_grad():  # the trainer's update on one batch of its window, as rile_update computes it
+        torch.manual_seed(0)
+        batch = rb.sample(4096, recent=args.trainer_buffer_size)
+        obs_trainer, a_trainer = torch.cat([batch.obs, batch.actions], -1), batch.extra
+        r_trainer = rile.TRAINER_REWARDS[args.trainer_reward](disc.prob(obs_trainer), a_trainer.squeeze(-1))
+        next_obs_trainer = torch.cat([batch.next_obs, student.policy(batch.next_obs)[0]], -1)
+        loss, q_mean, target_var = trainer.critic_loss(obs_trainer, a_trainer, next_obs_trainer, r_trainer, batch.terminations)
+    print(f"trainer's critics on {len(batch.obs)} pairs of its window: TD loss {loss:.4f}, mean Q {q_mean:.1f}; relative "
+          f"to the targets' variance {loss / (2 * target_var):.4f} (the freeze test's statistic), to r_T's variance "
+          f"{loss / (2 * r_trainer.var()):.2f}")
 
 
 if __name__ == "__main__":

@@ -444,6 +444,7 @@ def test_absorbing_states_end_to_end(run, tmp_path):
     live = ckpt["step"]  # one live row per env step; the absorbing loops are left out
     binned = [line.split("student")[1].split("pairs")[0] for line in out.splitlines() if line.startswith("v(D) in")]
     assert "student's pairs: r_S =" in out and len(binned) == 8 and sum(map(int, binned)) == live
+    assert "(the freeze test's statistic), to r_T's variance" in out
     run("rile.py", *TINY, "--total-timesteps", "210", "--run-name", "surv", "--termination-remedy", "survival")
     proc = run("benchmarks/rile_rewards.py", "runs/surv", check=False)  # not an absorbing-state run
     assert proc.returncode != 0 and "--termination-remedy survival" in proc.stderr
