@@ -146,7 +146,7 @@ class Args:
     """the trainer's target smoothing coefficient"""
     trainer_freeze: bool = True
     """freeze the trainer once its critic has converged (rile.py's header, choice 5)"""
-    trainer_freeze_stat: Literal["relative", "loss"] = "relative"
+    trainer_freeze_stat: Literal["relative", "reward", "loss"] = "relative"
     """relative: the trainer's critic loss over the variance of its targets; loss: the raw critic loss (the paper's words)"""
     trainer_freeze_threshold: float = 0.1
     """freeze when the moving average (0.99) of --trainer-freeze-stat stays below this"""
@@ -348,7 +348,7 @@ def rile_update(student: "SAC", trainer: "SAC", disc: nn.Module, rb: "ReplayBuff
     metrics |= trainer.update(obs_trainer, a_trainer, next_obs_trainer, r_trainer, batch.terminations,
                               prefix="losses/trainer_")
     metrics["reward/trainer_reward_mean"] = r_trainer.mean()
-    freeze_test(metrics["losses/trainer_qf_loss"], metrics["losses/trainer_qf_target_var"], args, state, step)
+    freeze_test(metrics["losses/trainer_qf_loss"], metrics["losses/trainer_qf_target_var"], r_trainer.var(), args, state, step)
     return metrics
 
 
@@ -418,16 +418,18 @@ def mix_expert(batch: "Batch", expert: dict, fraction: float, trainer: Optional[
     return batch
 
 
-def freeze_test(critic_loss, target_var, args, state: dict, step: int) -> None:
+def freeze_test(critic_loss, target_var, reward_var, args, state: dict, step: int) -> None:
     """Freeze the trainer "once its critic network converges" (the paper's appendix; its threshold, not its test).
     The statistic, a moving average (0.99) over updates, is by default the critics' TD loss relative to the
-    variance of their targets (--trainer-freeze-stat relative; `loss` is the raw TD loss): the share of what the
-    critic is asked to predict that it still gets wrong, whatever the reward's scale. It must stay below the
+    variance of their targets (--trainer-freeze-stat relative; `loss` is the raw TD loss; `reward`: relative to the
+    variance of the trainer's reward r_T in the batch, which the critic must resolve for its action to matter): the
+    share of what the critic is asked to predict that it still gets wrong, whatever the reward's scale. It must stay below the
     threshold for --trainer-freeze-window steps, and the freeze never comes before --trainer-freeze-after (3/4 of the
     run by default: the paper freezes "midway", its maze figure's reward still moves at 75 %, and the student is
     not to be confused "in the later stages of training")."""
-    ema = lambda name, x: torch.lerp(state[name], x, 0.01) if state["trainer_updates"] else x
-    state["critic_loss_ema"], state["target_var_ema"] = ema("critic_loss_ema", critic_loss), ema("target_var_ema", target_var)
+    ema = lambda name, x: torch.lerp(state[name], x, 0.01) if state["trainer_updates"] and state[name].isfinite() else x
+    for name, x in (("critic_loss_ema", critic_loss), ("target_var_ema", target_var), ("reward_var_ema", reward_var)):
+        state[name] = ema(name, x)
     state["trainer_updates"] += 1
     if not args.trainer_freeze or step % 100:  # reading the statistic synchronises: every 100 steps
         return
@@ -444,16 +446,17 @@ def freeze_test(critic_loss, target_var, args, state: dict, step: int) -> None:
 
 
 def freeze_statistic(state: dict, stat: str) -> float:
-    """The trainer's critic loss (a moving average): raw, or relative to its targets' variance (two critics)."""
-    loss = state["critic_loss_ema"].item()
-    return loss if stat == "loss" else loss / max(2 * state["target_var_ema"].item(), 1e-8)
+    """The trainer's critic loss (a moving average): raw, or relative to its targets' or its reward's variance (two
+    critics)."""
+    loss, scale = state["critic_loss_ema"].item(), state["reward_var_ema" if stat == "reward" else "target_var_ema"].item()
+    return loss if stat == "loss" else loss / max(2 * scale, 1e-8)
 
 
 def rile_state(device) -> dict:
     """The trainer's bookkeeping, saved in every checkpoint."""
     inf = torch.tensor(float("inf"), device=device)
     return {"frozen_at": None, "reward_only": False, "trainer_updates": 0, "critic_loss_ema": inf,
-            "target_var_ema": inf.clone(), "below_since": None}
+            "target_var_ema": inf.clone(), "reward_var_ema": inf.clone(), "below_since": None}
 
 
 def check_rile_args(args):

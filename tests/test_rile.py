@@ -147,12 +147,12 @@ def test_freezing_stops_trainer_updates_and_only_those():
     assert not changed(before_disc, disc)
 
 
-def freeze_step(critic_loss: float, target_var: float, total: int = 1000, **kw):
-    """The step at which freeze_test freezes a trainer whose critic loss and target variance stay constant."""
+def freeze_step(critic_loss: float, target_var: float, total: int = 1000, reward_var: float = 1.0, **kw):
+    """The step at which freeze_test freezes a trainer whose critic loss and target and reward variances stay constant."""
     args = tiny_args(total_timesteps=total, **({"trainer_freeze_min_updates": 0, "trainer_freeze_window": 200} | kw))
     state = rile.rile_state("cpu")
     for step in range(1, total + 1):
-        rile.freeze_test(torch.tensor(critic_loss), torch.tensor(target_var), args, state, step)
+        rile.freeze_test(torch.tensor(critic_loss), torch.tensor(target_var), torch.tensor(reward_var), args, state, step)
         if state["frozen_at"] is not None:
             return state["frozen_at"]
 
@@ -173,12 +173,20 @@ def test_a_flat_target_does_not_pass_for_convergence():
                        trainer_freeze_min_updates=150) == 200
 
 
-def test_freeze_statistic_is_a_moving_average_of_both_parts():
+def test_a_critic_whose_error_exceeds_the_reward_s_variation_has_not_converged():
+    # Hopper-v4's trainer at 124k: TD loss 0.077 (two critics), targets' variance 1.65, r_T's 0.023
+    assert freeze_step(0.077, 1.65, reward_var=0.023) == 800  # relative 0.023: frozen at the guard
+    assert freeze_step(0.077, 1.65, reward_var=0.023, trainer_freeze_stat="reward") is None  # 1.67: still learning
+    assert freeze_step(0.001, 1.65, reward_var=0.023, trainer_freeze_stat="reward") == 800  # 0.022: resolved
+
+
+def test_freeze_statistic_is_a_moving_average_of_its_parts():
     state, args = rile.rile_state("cpu"), tiny_args(total_timesteps=10)
-    rile.freeze_test(torch.tensor(4.0), torch.tensor(1.0), args, state, 1)  # the first update sets both averages
-    rile.freeze_test(torch.tensor(5.0), torch.tensor(2.0), args, state, 2)
+    rile.freeze_test(torch.tensor(4.0), torch.tensor(1.0), torch.tensor(8.0), args, state, 1)  # the first sets the averages
+    rile.freeze_test(torch.tensor(5.0), torch.tensor(2.0), torch.tensor(9.0), args, state, 2)
     assert state["critic_loss_ema"].item() == pytest.approx(4.01) and state["target_var_ema"].item() == pytest.approx(1.01)
     assert rile.freeze_statistic(state, "relative") == pytest.approx(4.01 / 2.02)
+    assert rile.freeze_statistic(state, "reward") == pytest.approx(4.01 / (2 * 8.01))
     assert rile.freeze_statistic(state, "loss") == pytest.approx(4.01) and state["trainer_updates"] == 2
 
 
@@ -385,7 +393,7 @@ def test_end_to_end_every_update_path_then_covariate_shift(run, tmp_path):
     assert results["trainer_frozen_at"] == 400 and results["reward_measures"] == dynamics
     measured = dynamics[1]
     for key in ("r_s_demos", "r_s_student", "r_s_absorbing", "d_demos", "d_student", "critic_loss", "critic_loss_relative",
-                "r_s_follows_d"):
+                "critic_loss_to_reward", "r_s_follows_d"):
         assert np.isfinite(measured[key]), key
     assert measured["r_s_spread"] == pytest.approx(measured["r_s_demos"] - measured["r_s_student"])
     assert 0 < measured["d_demos"] < 1 and measured["trainer_frozen_at"] == 400
@@ -455,13 +463,13 @@ def test_absorbing_states_end_to_end(run, tmp_path):
 def test_reward_measures_table(tmp_path, capsys):
     from benchmarks import reward_measures
     measure = {"step": 10, "r_s_demos": 0.5, "r_s_student": -0.25, "r_s_spread": 0.75, "r_s_absorbing": None,
-               "d_demos": 0.7, "d_student": 0.3, "critic_loss_relative": 0.05, "fs_rfdc": None, "cpr": 0.1,
-               "trainer_frozen_at": None}
+               "d_demos": 0.7, "d_student": 0.3, "critic_loss_relative": 0.05, "critic_loss_to_reward": 2.0, "fs_rfdc": None,
+               "cpr": 0.1, "trainer_frozen_at": None}
     results = {"evals": [{"step": 10, "normalized": 0.123}], "reward_measures": [measure, measure | {"step": 20,
                                                                                                  "trainer_frozen_at": 15}]}
     rows = reward_measures.table(results).splitlines()
-    assert rows[1].split("\t") == ["10", "0.12", "0.500", "-0.250", "0.750", "-", "0.700", "0.300", "-", "0.050", "-",
-                                   "0.100", "learning"]
+    assert rows[1].split("\t") == ["10", "0.12", "0.500", "-0.250", "0.750", "-", "0.700", "0.300", "-", "0.050", "2.000",
+                                   "-", "0.100", "learning"]
     assert rows[2].split("\t")[1] == "-" and rows[2].endswith("frozen at 15")
     (tmp_path / "old.json").write_text(json.dumps({"evals": []}))
     with pytest.raises(SystemExit, match="no reward_measures"):
