@@ -146,7 +146,7 @@ class Args:
     """the trainer's target smoothing coefficient"""
     trainer_freeze: bool = True
     """freeze the trainer once its critic has converged (rile.py's header, choice 5)"""
-    trainer_freeze_stat: Literal["relative", "reward", "loss"] = "relative"
+    trainer_freeze_stat: Literal["relative", "reward", "loss"] = "reward"
     """relative: the trainer's critic loss over the variance of its targets; loss: the raw critic loss (the paper's words)"""
     trainer_freeze_threshold: float = 0.1
     """freeze when the moving average (0.99) of --trainer-freeze-stat stays below this"""

@@ -28,12 +28,15 @@ Implementation choices and deviations
    `--disc-gp-center 1 --disc-normalize none`; also `--disc-normalize demos` and `--disc-update-every`.
 5. Freezing: the paper freezes the trainer "once its critic network converges" (threshold 0.1), so that the
    student is not confused "in the later stages of training", and names no test. Ours: a moving average
-   (0.99) of the critic's TD loss relative to the variance of its targets (a raw loss is met by any flat
-   target) stays below the threshold for `--trainer-freeze-window` steps, never before
-   `--trainer-freeze-after` (3/4 of the run: the paper's maze figure still shows the reward moving at 75 %,
-   and the statistic is under 0.1 from 10-20k on Hopper-v4, so this guard often sets the step). The earlier
-   rule: `--trainer-freeze-stat loss --trainer-freeze-window 0 --trainer-freeze-after 0`; `--no-trainer-freeze`
-   turns it off. D keeps training.
+   (0.99) of the critic's TD loss relative to the variance of the trainer's reward r_T in its batches stays below
+   the threshold for `--trainer-freeze-window` steps, never before `--trainer-freeze-after` (3/4 of the run: the
+   paper's maze figure still shows the reward moving at 75 %). The critic has converged when its error is small
+   beside the variation of the reward it learns, which is what its action changes: a raw loss is met by any flat
+   target, and a loss relative to the targets' variance (`--trainer-freeze-stat relative`) by the value's spread
+   across states, under 0.1 from 20k on Hopper-v4 while the error was still larger than r_T's variance; frozen
+   there, the reward was exploited by the student (docs/reward-that-teaches.md). The earlier rules:
+   `--trainer-freeze-stat relative`, and `--trainer-freeze-stat loss --trainer-freeze-window 0
+   --trainer-freeze-after 0`; `--no-trainer-freeze` turns it off. D keeps training.
 6. Termination bias (the paper is silent): r_S = a_T can be negative, which pays the student to end episodes
    early. `--termination-remedy none` is the paper-literal reward, `survival` pays (1 + a_T) / 2, `absorbing`
    (default) adds DAC's absorbing states to the student's and the expert's data alike: a termination leads to
@@ -170,7 +173,7 @@ class Args:
     """the trainer's target smoothing coefficient"""
     trainer_freeze: bool = True
     """freeze the trainer once its critic has converged (header, choice 5)"""
-    trainer_freeze_stat: Literal["relative", "reward", "loss"] = "relative"
+    trainer_freeze_stat: Literal["relative", "reward", "loss"] = "reward"
     """relative: the trainer's critic loss over the variance of its targets; reward: over the variance of its reward r_T;
     loss: the raw critic loss (the paper's words)"""
     trainer_freeze_threshold: float = 0.1

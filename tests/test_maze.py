@@ -191,11 +191,11 @@ def test_cell_means_follow_the_way_to_the_goal():
 
 def test_run_gives_each_method_its_flags_last(monkeypatch, tmp_path):
     """rile.py's runs get the default's guard (3/4 of all segments, not of the first), and a method's own flags
-    come after it, so that `rile-test-only` really runs without the guard (the last flag wins)."""
+    come after it, so that `rile-frozen` really runs without the guard (the last flag wins)."""
     calls = []
     monkeypatch.setattr(maze, "train_segments", lambda script, name, steps, segments, extra: calls.append(extra))
     monkeypatch.setattr(maze, "figures", lambda methods, seed: {})
     monkeypatch.setattr(maze, "RESULTS", str(tmp_path))
-    maze.main(["run", "--methods", "rile", "rile-test-only", "gail", "--segments", "4", "--segment-steps", "1000"])
+    maze.main(["run", "--methods", "rile", "rile-frozen", "gail", "--segments", "4", "--segment-steps", "1000"])
     guard = lambda extra: [v for k, v in zip(extra, extra[1:]) if k == "--trainer-freeze-after"]
     assert [guard(extra) for extra in calls] == [["3000"], ["3000", "0"], []]

@@ -165,8 +165,9 @@ def test_freeze_waits_for_three_quarters_of_the_run_and_a_held_window():
 
 
 def test_a_flat_target_does_not_pass_for_convergence():
-    # a critic loss of 0.01 on targets that barely vary: under the raw threshold, not under the relative one
-    assert freeze_step(0.01, 0.001) is None
+    # a critic loss of 0.01 on targets and a reward that barely vary: under the raw threshold, not under the relative ones
+    assert freeze_step(0.01, 0.001, reward_var=0.001) is None
+    assert freeze_step(0.01, 0.001, reward_var=0.001, trainer_freeze_stat="relative") is None
     assert freeze_step(0.01, 0.001, trainer_freeze_stat="loss") == 800
     # the earlier rule: the raw loss, the first crossing after --trainer-freeze-min-updates, at any point of the run
     assert freeze_step(0.01, 0.001, trainer_freeze_stat="loss", trainer_freeze_window=0, trainer_freeze_after=0,
@@ -175,9 +176,9 @@ def test_a_flat_target_does_not_pass_for_convergence():
 
 def test_a_critic_whose_error_exceeds_the_reward_s_variation_has_not_converged():
     # Hopper-v4's trainer at 124k: TD loss 0.077 (two critics), targets' variance 1.65, r_T's 0.023
-    assert freeze_step(0.077, 1.65, reward_var=0.023) == 800  # relative 0.023: frozen at the guard
-    assert freeze_step(0.077, 1.65, reward_var=0.023, trainer_freeze_stat="reward") is None  # 1.67: still learning
-    assert freeze_step(0.001, 1.65, reward_var=0.023, trainer_freeze_stat="reward") == 800  # 0.022: resolved
+    assert freeze_step(0.077, 1.65, reward_var=0.023, trainer_freeze_stat="relative") == 800  # 0.023: frozen at the guard
+    assert freeze_step(0.077, 1.65, reward_var=0.023) is None  # the default, relative to r_T's variance, 1.67: learning
+    assert freeze_step(0.001, 1.65, reward_var=0.023) == 800  # 0.022: resolved
 
 
 def test_freeze_statistic_is_a_moving_average_of_its_parts():
