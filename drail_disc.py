@@ -421,9 +421,9 @@ def mix_expert(batch: "Batch", expert: dict, fraction: float, trainer: Optional[
 def freeze_test(critic_loss, target_var, reward_var, args, state: dict, step: int) -> None:
     """Freeze the trainer "once its critic network converges" (the paper's appendix; its threshold, not its test).
     The statistic, a moving average (0.99) over updates, is by default the critics' TD loss relative to the
-    variance of their targets (--trainer-freeze-stat relative; `loss` is the raw TD loss; `reward`: relative to the
-    variance of the trainer's reward r_T in the batch, which the critic must resolve for its action to matter): the
-    share of what the critic is asked to predict that it still gets wrong, whatever the reward's scale. It must stay below the
+    variance of the trainer's reward r_T in the batch (--trainer-freeze-stat reward): the critic must resolve that
+    variation for its action to matter, whatever the reward's scale. `relative` divides by the variance of the TD
+    targets instead (met by the value's spread across states), `loss` is the raw TD loss. It must stay below the
     threshold for --trainer-freeze-window steps, and the freeze never comes before --trainer-freeze-after (3/4 of the
     run by default: the paper freezes "midway", its maze figure's reward still moves at 75 %, and the student is
     not to be confused "in the later stages of training")."""
