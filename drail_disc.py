@@ -427,7 +427,7 @@ def freeze_test(critic_loss, target_var, reward_var, args, state: dict, step: in
     threshold for --trainer-freeze-window steps, and the freeze never comes before --trainer-freeze-after (3/4 of the
     run by default: the paper freezes "midway", its maze figure's reward still moves at 75 %, and the student is
     not to be confused "in the later stages of training")."""
-    ema = lambda name, x: torch.lerp(state[name], x, 0.01) if state["trainer_updates"] and state[name].isfinite() else x
+    ema = lambda name, x: torch.where(state[name].isfinite(), torch.lerp(state[name], x, 0.01), x)  # inf: no average yet
     for name, x in (("critic_loss_ema", critic_loss), ("target_var_ema", target_var), ("reward_var_ema", reward_var)):
         state[name] = ema(name, x)
     state["trainer_updates"] += 1
