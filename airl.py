@@ -344,6 +344,40 @@ def reward_measures(reward, disc_prob, rb: "ReplayBuffer", expert: dict, absorbi
 # --- end shared: reward measures ---
 
 
+# --- shared: absorbing ---
+def absorbing_state(obs_dim: int) -> np.ndarray:
+    """DAC's absorbing state for observations of `obs_dim`: zeros, then the indicator column set to 1."""
+    return np.append(np.zeros(obs_dim, dtype=np.float32), np.float32(1.0))
+
+
+def store(rb: "ReplayBuffer", obs, action, next_obs, reward, terminated, absorbing: bool, extra=(), absorbing_extra=()):
+    """Store one env transition. With absorbing states (DAC, Kostrikov et al. 2019) observations get an indicator
+    column (0); a termination leads to the absorbing state instead and is no longer terminal, and the row
+    (absorbing state, zero action, absorbing state; extra columns `absorbing_extra`) follows it, so ending an
+    episode is worth the learned reward of the absorbing state forever, not an implicit 0."""
+    if not absorbing:
+        return rb.add(obs, action, next_obs, reward, terminated, extra)
+    s_abs = absorbing_state(len(obs))
+    rb.add(np.append(obs, 0.0), action, s_abs if terminated else np.append(next_obs, 0.0), reward, False, extra)
+    if terminated:
+        rb.add(s_abs, np.zeros_like(action), s_abs, 0.0, False, absorbing_extra)
+
+
+def absorbing_expert(expert: dict) -> dict:
+    """store()'s treatment of the demonstrations (a dict of tensors): the indicator column, terminal transitions
+    lead to the absorbing state, one absorbing self-loop (zero action) per termination."""
+    obs, next_obs, term = expert["obs"], expert["next_obs"], expert["terminations"] > 0
+    s_abs = torch.as_tensor(absorbing_state(obs.shape[1]), device=obs.device)
+    loops = s_abs.expand(int(term.sum()), -1)
+    next_obs = torch.where(term.unsqueeze(-1), s_abs, F.pad(next_obs, (0, 1)))
+    out = {**expert, "obs": torch.cat([F.pad(obs, (0, 1)), loops]), "next_obs": torch.cat([next_obs, loops]),
+           "terminations": obs.new_zeros(len(obs) + len(loops))}
+    if "actions" in expert:
+        out["actions"] = F.pad(expert["actions"], (0, 0, 0, len(loops)))
+    return out
+# --- end shared: absorbing ---
+
+
 # --- shared: env ---
 def make_env(env_id: str, seed: int, render_mode: Optional[str] = None) -> gym.Env:
     """One seeded gymnasium env (no vector env: episodes are reset explicitly), or a one-line error."""
@@ -644,40 +678,6 @@ def expert_tensors(demos: dict, seed: int, device, state_noise: float = 0.0, act
 # --- end shared: expert data ---
 
 
-# --- shared: absorbing ---
-def absorbing_state(obs_dim: int) -> np.ndarray:
-    """DAC's absorbing state for observations of `obs_dim`: zeros, then the indicator column set to 1."""
-    return np.append(np.zeros(obs_dim, dtype=np.float32), np.float32(1.0))
-
-
-def store(rb: "ReplayBuffer", obs, action, next_obs, reward, terminated, absorbing: bool, extra=(), absorbing_extra=()):
-    """Store one env transition. With absorbing states (DAC, Kostrikov et al. 2019) observations get an indicator
-    column (0); a termination leads to the absorbing state instead and is no longer terminal, and the row
-    (absorbing state, zero action, absorbing state; extra columns `absorbing_extra`) follows it, so ending an
-    episode is worth the learned reward of the absorbing state forever, not an implicit 0."""
-    if not absorbing:
-        return rb.add(obs, action, next_obs, reward, terminated, extra)
-    s_abs = absorbing_state(len(obs))
-    rb.add(np.append(obs, 0.0), action, s_abs if terminated else np.append(next_obs, 0.0), reward, False, extra)
-    if terminated:
-        rb.add(s_abs, np.zeros_like(action), s_abs, 0.0, False, absorbing_extra)
-
-
-def absorbing_expert(expert: dict) -> dict:
-    """store()'s treatment of the demonstrations (a dict of tensors): the indicator column, terminal transitions
-    lead to the absorbing state, one absorbing self-loop (zero action) per termination."""
-    obs, next_obs, term = expert["obs"], expert["next_obs"], expert["terminations"] > 0
-    s_abs = torch.as_tensor(absorbing_state(obs.shape[1]), device=obs.device)
-    loops = s_abs.expand(int(term.sum()), -1)
-    next_obs = torch.where(term.unsqueeze(-1), s_abs, F.pad(next_obs, (0, 1)))
-    out = {**expert, "obs": torch.cat([F.pad(obs, (0, 1)), loops]), "next_obs": torch.cat([next_obs, loops]),
-           "terminations": obs.new_zeros(len(obs) + len(loops))}
-    if "actions" in expert:
-        out["actions"] = F.pad(expert["actions"], (0, 0, 0, len(loops)))
-    return out
-# --- end shared: absorbing ---
-
-
 # --- shared: evaluation ---
 def evaluate(act, env_id: str, num_episodes: int, seed: int, capture_video_dir: Optional[str] = None) -> list:
     """Returns of the deterministic policy on its own env; episode i starts from reset(seed=seed + i), so
@@ -828,18 +828,14 @@ def tensorboard(args, name: str, run_dir: str):
                    config=vars(args), name=name, id=name, resume="allow", save_code=True)
     from torch.utils.tensorboard import SummaryWriter
     writer = SummaryWriter(run_dir)
-    table = "\n".join(f"|{k}|{v}|" for k, v in asdict(args).items())
-    writer.add_text("hyperparameters", f"|param|value|\n|-|-|\n{table}")
+    writer.add_text("hyperparameters", "|param|value|\n|-|-|\n" + "\n".join(f"|{k}|{v}|" for k, v in asdict(args).items()))
     return writer
 
 
 def save_file(path: str, obj) -> None:
     """torch.save for .pt files, JSON otherwise, through a temporary file: a run killed while saving keeps the old one."""
-    if path.endswith(".pt"):
-        torch.save(obj, path + ".tmp")
-    else:
-        with open(path + ".tmp", "w") as f:
-            json.dump(obj, f, indent=1)
+    with open(path + ".tmp", "wb" if path.endswith(".pt") else "w") as f:
+        torch.save(obj, f) if path.endswith(".pt") else json.dump(obj, f, indent=1)
     os.replace(path + ".tmp", path)
 
 
@@ -858,14 +854,12 @@ def machine(device) -> dict:
     """What decides a run's numbers besides its config: versions, CPU, threads, device, and the code's git commit
     ("-dirty" with uncommitted changes; None outside a git checkout)."""
     from importlib.metadata import version
+    from shutil import which
     from subprocess import run
-    cpu = next((line.split(":", 1)[1].strip() for line in open("/proc/cpuinfo") if line.startswith("model name")),
-               platform.processor()) if os.path.exists("/proc/cpuinfo") else platform.processor()
-    try:
-        git = run(["git", "describe", "--always", "--dirty", "--abbrev=12"], capture_output=True, text=True,
-                  cwd=os.path.dirname(os.path.abspath(__file__))).stdout.strip()
-    except OSError:  # no git installed
-        git = ""
+    cpuinfo = open("/proc/cpuinfo").read().splitlines() if os.path.exists("/proc/cpuinfo") else []
+    cpu = next((line.split(":", 1)[1].strip() for line in cpuinfo if line.startswith("model name")), platform.processor())
+    git = run(["git", "describe", "--always", "--dirty", "--abbrev=12"], capture_output=True, text=True,
+              cwd=os.path.dirname(os.path.abspath(__file__))).stdout.strip() if which("git") else ""
     return {"host": platform.node(), "cpu": cpu, "cpu_capability": torch.backends.cpu.get_cpu_capability(),
             "threads": torch.get_num_threads(), "device": str(device), "python": platform.python_version(),
             **{name: version(name) for name in ("torch", "numpy", "gymnasium", "mujoco")}, "git": git or None}

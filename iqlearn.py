@@ -581,18 +581,14 @@ def tensorboard(args, name: str, run_dir: str):
                    config=vars(args), name=name, id=name, resume="allow", save_code=True)
     from torch.utils.tensorboard import SummaryWriter
     writer = SummaryWriter(run_dir)
-    table = "\n".join(f"|{k}|{v}|" for k, v in asdict(args).items())
-    writer.add_text("hyperparameters", f"|param|value|\n|-|-|\n{table}")
+    writer.add_text("hyperparameters", "|param|value|\n|-|-|\n" + "\n".join(f"|{k}|{v}|" for k, v in asdict(args).items()))
     return writer
 
 
 def save_file(path: str, obj) -> None:
     """torch.save for .pt files, JSON otherwise, through a temporary file: a run killed while saving keeps the old one."""
-    if path.endswith(".pt"):
-        torch.save(obj, path + ".tmp")
-    else:
-        with open(path + ".tmp", "w") as f:
-            json.dump(obj, f, indent=1)
+    with open(path + ".tmp", "wb" if path.endswith(".pt") else "w") as f:
+        torch.save(obj, f) if path.endswith(".pt") else json.dump(obj, f, indent=1)
     os.replace(path + ".tmp", path)
 
 
@@ -611,14 +607,12 @@ def machine(device) -> dict:
     """What decides a run's numbers besides its config: versions, CPU, threads, device, and the code's git commit
     ("-dirty" with uncommitted changes; None outside a git checkout)."""
     from importlib.metadata import version
+    from shutil import which
     from subprocess import run
-    cpu = next((line.split(":", 1)[1].strip() for line in open("/proc/cpuinfo") if line.startswith("model name")),
-               platform.processor()) if os.path.exists("/proc/cpuinfo") else platform.processor()
-    try:
-        git = run(["git", "describe", "--always", "--dirty", "--abbrev=12"], capture_output=True, text=True,
-                  cwd=os.path.dirname(os.path.abspath(__file__))).stdout.strip()
-    except OSError:  # no git installed
-        git = ""
+    cpuinfo = open("/proc/cpuinfo").read().splitlines() if os.path.exists("/proc/cpuinfo") else []
+    cpu = next((line.split(":", 1)[1].strip() for line in cpuinfo if line.startswith("model name")), platform.processor())
+    git = run(["git", "describe", "--always", "--dirty", "--abbrev=12"], capture_output=True, text=True,
+              cwd=os.path.dirname(os.path.abspath(__file__))).stdout.strip() if which("git") else ""
     return {"host": platform.node(), "cpu": cpu, "cpu_capability": torch.backends.cpu.get_cpu_capability(),
             "threads": torch.get_num_threads(), "device": str(device), "python": platform.python_version(),
             **{name: version(name) for name in ("torch", "numpy", "gymnasium", "mujoco")}, "git": git or None}
