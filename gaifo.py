@@ -784,8 +784,11 @@ def tensorboard(args, name: str, run_dir: str):
 
 def save_file(path: str, obj) -> None:
     """torch.save for .pt files, JSON otherwise, through a temporary file: a run killed while saving keeps the old one."""
-    with open(path + ".tmp", "wb" if path.endswith(".pt") else "w") as f:
-        torch.save(obj, f) if path.endswith(".pt") else json.dump(obj, f, indent=1)
+    if path.endswith(".pt"):
+        torch.save(obj, path + ".tmp")
+    else:
+        with open(path + ".tmp", "w") as f:
+            json.dump(obj, f, indent=1)
     os.replace(path + ".tmp", path)
 
 
