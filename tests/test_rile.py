@@ -117,6 +117,19 @@ def test_trainer_transition_layout(monkeypatch):
     assert torch.allclose(r_t, torch.exp(-((2 * d - 1) - a_t.squeeze(-1)).abs()))
 
 
+def test_the_trainer_discounts_by_its_own_gamma_at_a_fixed_temperature():
+    args = rile.Args()
+    trainer = rile.make_trainer(OBS, ACT, args, "cpu")
+    assert (trainer.gamma, args.gamma) == (0.9, 0.99) and trainer.alpha_optimizer is None
+    next_obs, rewards, terminated = torch.randn(5, OBS + ACT), torch.rand(5), torch.tensor([0.0, 0, 1, 0, 1])
+    torch.manual_seed(0)
+    a_next, log_pi = trainer.policy(next_obs)
+    soft_q = trainer.qf_target(next_obs, a_next).min(0).values - 0.2 * log_pi
+    torch.manual_seed(0)
+    target = trainer.td_target(next_obs, rewards, terminated)
+    assert torch.allclose(target, rewards + 0.9 * (1 - terminated) * soft_q)
+
+
 # ---------------------------------------------------------------- freezing and expert data
 
 
