@@ -32,7 +32,8 @@ Implementation choices and deviations
    statistics, in both variants (DRAIL-GAIL becomes a diffusion GAIfO); the demonstrations' actions are
    never loaded. DRAIL-RILe's trainer observes (s, a_S) or, with `--trainer-obs transition`, (s, s'), as in
    rile.py (its choice 10), with the same refusals. Its trainer batches hold no expert pairs by default
-   (`--trainer-expert-fraction 0`, the paper's; rile.py's choice 8 puts a tenth there).
+   (`--trainer-expert-fraction 0`, the paper's; rile.py's choice 8 puts a tenth there), and its trainer discounts
+   by the paper's 0.99 (`--trainer-gamma`; rile.py's choice 11 uses 0.9, measured there only).
 
 Logged metrics (both variants; trainer_* in DRAIL-RILe only): charts/episodic_return, charts/SPS, eval/return,
 eval/normalized_return, losses/{student,trainer}_{qf_loss,qf_values,actor_loss,alpha_loss,alpha,entropy},
