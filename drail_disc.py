@@ -147,8 +147,9 @@ class Args:
     """the trainer's target smoothing coefficient"""
     trainer_freeze: bool = True
     """freeze the trainer once its critic has converged (rile.py's header, choice 5)"""
-    trainer_freeze_stat: Literal["relative", "reward", "loss"] = "reward"
-    """relative: the trainer's critic loss over the variance of its targets; loss: the raw critic loss (the paper's words)"""
+    trainer_freeze_stat: Literal["relative", "reward", "excess", "loss"] = "reward"
+    """the trainer's critic loss relative to its targets' variance (relative), to its reward's (reward), beyond its targets'
+    own sampling variance relative to its reward's (excess), or raw (loss: the paper's words)"""
     trainer_freeze_threshold: float = 0.1
     """freeze when the moving average (0.99) of --trainer-freeze-stat stays below this"""
     trainer_freeze_window: int = 10_000
@@ -339,16 +340,23 @@ def rile_update(student: "SAC", trainer: "SAC", disc: nn.Module, rb: "ReplayBuff
     idx = rb.indices(args.trainer_batch_size, recent=args.trainer_buffer_size)
     batch = mix_expert(rb.batch(idx), expert, args.trainer_expert_fraction, trainer, args.trainer_obs)
     obs_trainer, a_trainer = trainer_input(batch.obs, batch.actions, batch.next_obs, args.trainer_obs), batch.extra
+
+    def next_obs_trainer():  # o_T' = (s', s'') as the student went on, or (s', a'_S) with a fresh a'_S (header, choice 2)
+        if args.trainer_obs == "transition":
+            return torch.cat([batch.next_obs, successor_next_obs(rb, idx, batch)], -1)
+        return torch.cat([batch.next_obs, student.policy(batch.next_obs)[0]], -1)
     with torch.no_grad():
         d = disc.prob(torch.cat([batch.obs, getattr(batch, seen)], -1))
         r_trainer = TRAINER_REWARDS[args.trainer_reward](d, a_trainer.squeeze(-1))
-        if args.trainer_obs == "transition":  # o_T' = (s', s''), s'' as the student went on
-            next_obs_trainer = torch.cat([batch.next_obs, successor_next_obs(rb, idx, batch)], -1)
-        else:  # o_T' = (s', a'_S), a'_S from the current student (header, choice 2)
-            next_obs_trainer = torch.cat([batch.next_obs, student.policy(batch.next_obs)[0]], -1)
-    metrics |= trainer.update(obs_trainer, a_trainer, next_obs_trainer, r_trainer, batch.terminations,
-                              prefix="losses/trainer_")
+        o_next = next_obs_trainer()
+    metrics |= trainer.update(obs_trainer, a_trainer, o_next, r_trainer, batch.terminations, prefix="losses/trainer_")
     metrics["reward/trainer_reward_mean"] = r_trainer.mean()
+    if step % 10 == 0:  # the TD targets' own variance over a'_S and a'_T, a part of the TD loss no critic can remove:
+        # two more draws, with the random stream restored after them so that they change nothing else in the run
+        with torch.random.fork_rng(devices=[torch.cuda.current_device()] if r_trainer.is_cuda else []), torch.no_grad():
+            y1, y2 = (trainer.td_target(next_obs_trainer(), r_trainer, batch.terminations) for _ in range(2))
+        noise, prev = 0.5 * (y1 - y2).pow(2).mean(), state["target_noise_ema"]
+        state["target_noise_ema"] = torch.where(prev.isfinite(), torch.lerp(prev, noise, 0.1), noise)
     freeze_test(metrics["losses/trainer_qf_loss"], metrics["losses/trainer_qf_target_var"], r_trainer.var(), args, state, step)
     return metrics
 
@@ -447,9 +455,13 @@ def freeze_test(critic_loss, target_var, reward_var, args, state: dict, step: in
 
 
 def freeze_statistic(state: dict, stat: str) -> float:
-    """The trainer's critic loss (a moving average): raw, or relative to its targets' or its reward's variance (two
-    critics)."""
-    loss, scale = state["critic_loss_ema"].item(), state["reward_var_ema" if stat == "reward" else "target_var_ema"].item()
+    """The trainer's critic loss (a moving average, two critics): raw, or relative to its targets' or its reward's
+    variance; `excess`: the part of it beyond its targets' own variance, relative to its reward's variance."""
+    loss = state["critic_loss_ema"].item()
+    if stat == "excess":  # no estimate of the targets' variance yet (inf): not converged
+        noise = state["target_noise_ema"].item()
+        loss = loss - 2 * noise if noise < float("inf") else float("inf")
+    scale = state["target_var_ema" if stat == "relative" else "reward_var_ema"].item()
     return loss if stat == "loss" else loss / max(2 * scale, 1e-8)
 
 
@@ -457,7 +469,7 @@ def rile_state(device) -> dict:
     """The trainer's bookkeeping, saved in every checkpoint."""
     inf = torch.tensor(float("inf"), device=device)
     return {"frozen_at": None, "reward_only": False, "trainer_updates": 0, "critic_loss_ema": inf,
-            "target_var_ema": inf.clone(), "reward_var_ema": inf.clone(), "below_since": None}
+            "target_var_ema": inf.clone(), "reward_var_ema": inf.clone(), "target_noise_ema": inf.clone(), "below_since": None}
 
 
 def check_rile_args(args):

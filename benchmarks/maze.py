@@ -49,7 +49,8 @@ RESULTS = os.path.join(ROOT, "benchmarks", "results")
 METHODS = {  # name: (script, its flags beyond the shared ones)
     "rile": ("rile.py", []),
     # the rule before issue 28 (raw critic loss under 0.1, no window, no guard): freezes early
-    "rile-frozen": ("rile.py", ["--trainer-freeze-stat", "loss", "--trainer-freeze-window", "0", "--trainer-freeze-after", "0"]),
+    "rile-frozen": ("rile.py", ["--trainer-freeze-stat", "loss", "--trainer-freeze-window", "0",
+                                "--trainer-freeze-after", "0"]),
     "gail": ("gail.py", []),
     "airl": ("airl.py", []),
 }

@@ -15,7 +15,7 @@ import json
 
 COLUMNS = [("r_s_demos", "r_S demo"), ("r_s_student", "r_S stud"), ("r_s_spread", "spread"), ("r_s_absorbing", "r_S abs"),
            ("d_demos", "D demo"), ("d_student", "D stud"), ("r_s_follows_d", "r_S~D"), ("critic_loss_relative", "crit rel"),
-           ("critic_loss_to_reward", "crit/r_T"),
+           ("critic_loss_to_reward", "crit/r_T"), ("critic_excess_to_reward", "crit>noise"),
            ("fs_rfdc", "FS-RFDC"), ("cpr", "CPR")]
 
 

@@ -3,7 +3,8 @@ newest pairs (a least-squares line and Pearson) and on the demonstrations, binne
 trainer's reward is fitted (the student's pairs) and where it is an extrapolation (the demonstrations' pairs).
 Then the freeze test's statistic on one batch of the trainer's window (its two critics' TD loss relative to the
 variance of their targets) beside the same loss relative to the variance of the reward r_T itself: whether the
-critic has resolved what its action controls. For runs with `--termination-remedy absorbing` and the trainer
+critic has resolved what its action controls; and that loss split into the variance of its sampled targets, which
+no critic removes, and the error beyond it. For runs with `--termination-remedy absorbing` and the trainer
 observing (s, a_S).
 
     python benchmarks/rile_follows_d.py runs/bench__Hopper-v4__rile-s-pooled-alpha02__1 --recent 10000
@@ -65,9 +66,17 @@ def main():
         r_trainer = rile.TRAINER_REWARDS[args.trainer_reward](disc.prob(obs_trainer), a_trainer.squeeze(-1))
         next_obs_trainer = torch.cat([batch.next_obs, student.policy(batch.next_obs)[0]], -1)
         loss, q_mean, target_var = trainer.critic_loss(obs_trainer, a_trainer, next_obs_trainer, r_trainer, batch.terminations)
+        # E[(Q - y)^2] = Var(y) + (Q - E[y])^2: the targets' own variance over a'_S and a'_T, which no critic removes,
+        # and the critics' error beyond it (what --trainer-freeze-stat excess tests), from 32 draws of y per pair
+        q = trainer.qf(obs_trainer, a_trainer)
+        ys = torch.stack([trainer.td_target(torch.cat([batch.next_obs, student.policy(batch.next_obs)[0]], -1), r_trainer,
+                                            batch.terminations) for _ in range(32)])
+        floor, beyond = ys.var(0, unbiased=False).mean(), (q - ys.mean(0)).pow(2).mean()
     print(f"trainer's critics on {len(batch.obs)} pairs of its window: TD loss {loss:.4f}, mean Q {q_mean:.1f}; relative "
           f"to the targets' variance {loss / (2 * target_var):.4f} (the freeze test's statistic), to r_T's variance "
           f"{loss / (2 * r_trainer.var()):.2f}")
+    print(f"per critic, relative to r_T's variance: the targets' own variance {floor / r_trainer.var():.3f}, the error "
+          f"beyond it {beyond / r_trainer.var():.3f} (--trainer-freeze-stat excess)")
 
 
 if __name__ == "__main__":

@@ -160,10 +160,10 @@ def test_freezing_stops_trainer_updates_and_only_those():
     assert not changed(before_disc, disc)
 
 
-def freeze_step(critic_loss: float, target_var: float, total: int = 1000, reward_var: float = 1.0, **kw):
+def freeze_step(critic_loss: float, target_var: float, total: int = 1000, reward_var: float = 1.0, state=None, **kw):
     """The step at which freeze_test freezes a trainer whose critic loss and target and reward variances stay constant."""
     args = tiny_args(total_timesteps=total, **({"trainer_freeze_min_updates": 0, "trainer_freeze_window": 200} | kw))
-    state = rile.rile_state("cpu")
+    state = rile.rile_state("cpu") | (state or {})
     for step in range(1, total + 1):
         rile.freeze_test(torch.tensor(critic_loss), torch.tensor(target_var), torch.tensor(reward_var), args, state, step)
         if state["frozen_at"] is not None:
@@ -202,6 +202,44 @@ def test_freeze_statistic_is_a_moving_average_of_its_parts():
     assert rile.freeze_statistic(state, "relative") == pytest.approx(4.01 / 2.02)
     assert rile.freeze_statistic(state, "reward") == pytest.approx(4.01 / (2 * 8.01))
     assert rile.freeze_statistic(state, "loss") == pytest.approx(4.01) and state["trainer_updates"] == 2
+    assert rile.freeze_statistic(state, "excess") == float("inf")  # no estimate of the targets' variance yet
+    state["target_noise_ema"] = torch.tensor(1.5)
+    assert rile.freeze_statistic(state, "excess") == pytest.approx((4.01 - 2 * 1.5) / (2 * 8.01))
+
+
+def test_a_converged_critic_at_its_targets_noise_floor_passes_only_the_excess_test():
+    # Walker2d-v4's trainer at 200k (discount 0.9): TD loss 2 x 0.00475, of it 2 x 0.00384 the targets' own variance,
+    # r_T's variance 0.0218: 0.218 relative to r_T's variance, 0.04 beyond the floor
+    noise = {"target_noise_ema": torch.tensor(0.00384)}
+    assert freeze_step(0.0095, 0.03, reward_var=0.0218, state=noise) is None  # 0.218 of r_T's variance: never
+    assert freeze_step(0.0095, 0.03, reward_var=0.0218, state=noise, trainer_freeze_stat="excess") == 800  # 0.042
+
+
+def test_the_targets_noise_estimate_by_hand_and_the_random_stream_it_leaves_alone():
+    args = tiny_args(termination_remedy="none", trainer_buffer_size=20)
+    after = {}
+    for step in (10, 11):  # every 10th step estimates the noise; the other steps of the run draw the same numbers
+        student, trainer, disc, rb, expert, state = learners(args)
+        torch.manual_seed(1)
+        rile.rile_update(student, trainer, disc, rb, expert, args, state, step)
+        after[step] = (torch.get_rng_state(), state["target_noise_ema"].item())
+    assert torch.equal(after[10][0], after[11][0]) and after[11][1] == float("inf")
+    # by hand: two draws of the TD target, a'_S and a'_T fresh, on the trainer batch the update used
+    student, trainer, disc, rb, expert, state = learners(args)
+    seen, original = {}, trainer.update
+
+    def update(*batch, prefix):  # the trainer's batch, and the random stream where the two draws start
+        metrics = original(*batch, prefix=prefix)
+        seen.update(batch=batch, rng=torch.get_rng_state())
+        return metrics
+    trainer.update = update
+    torch.manual_seed(1)
+    rile.rile_update(student, trainer, disc, rb, expert, args, state, 10)
+    _, _, next_obs_t, r_t, terminated = seen["batch"]
+    s_next = next_obs_t[:, :OBS]
+    torch.set_rng_state(seen["rng"])
+    y1, y2 = (trainer.td_target(torch.cat([s_next, student.policy(s_next)[0]], -1), r_t, terminated) for _ in range(2))
+    assert not torch.equal(y1, y2) and after[10][1] == pytest.approx(0.5 * (y1 - y2).pow(2).mean().item())
 
 
 def test_discriminator_updates_every_n_steps():
@@ -407,7 +445,7 @@ def test_end_to_end_every_update_path_then_covariate_shift(run, tmp_path):
     assert results["trainer_frozen_at"] == 400 and results["reward_measures"] == dynamics
     measured = dynamics[1]
     for key in ("r_s_demos", "r_s_student", "r_s_absorbing", "d_demos", "d_student", "critic_loss", "critic_loss_relative",
-                "critic_loss_to_reward", "r_s_follows_d"):
+                "critic_loss_to_reward", "critic_excess_to_reward", "r_s_follows_d"):
         assert np.isfinite(measured[key]), key
     assert measured["r_s_spread"] == pytest.approx(measured["r_s_demos"] - measured["r_s_student"])
     assert 0 < measured["d_demos"] < 1 and measured["trainer_frozen_at"] == 400
@@ -467,6 +505,8 @@ def test_absorbing_states_end_to_end(run, tmp_path):
     binned = [line.split("student")[1].split("pairs")[0] for line in out.splitlines() if line.startswith("v(D) in")]
     assert "student's pairs: r_S =" in out and len(binned) == 8 and sum(map(int, binned)) == live
     assert "(the freeze test's statistic), to r_T's variance" in out
+    split = out.split("the targets' own variance ")[1]
+    assert float(split.split(",")[0]) > 0 and float(split.split("beyond it ")[1].split(" ")[0]) >= 0
     run("rile.py", *TINY, "--total-timesteps", "210", "--run-name", "surv", "--termination-remedy", "survival")
     proc = run("benchmarks/rile_rewards.py", "runs/surv", check=False)  # not an absorbing-state run
     assert proc.returncode != 0 and "--termination-remedy survival" in proc.stderr
@@ -477,13 +517,13 @@ def test_absorbing_states_end_to_end(run, tmp_path):
 def test_reward_measures_table(tmp_path, capsys):
     from benchmarks import reward_measures
     measure = {"step": 10, "r_s_demos": 0.5, "r_s_student": -0.25, "r_s_spread": 0.75, "r_s_absorbing": None,
-               "d_demos": 0.7, "d_student": 0.3, "critic_loss_relative": 0.05, "critic_loss_to_reward": 2.0, "fs_rfdc": None,
-               "cpr": 0.1, "trainer_frozen_at": None}
+               "d_demos": 0.7, "d_student": 0.3, "critic_loss_relative": 0.05, "critic_loss_to_reward": 2.0,
+               "critic_excess_to_reward": 0.04, "fs_rfdc": None, "cpr": 0.1, "trainer_frozen_at": None}
     results = {"evals": [{"step": 10, "normalized": 0.123}], "reward_measures": [measure, measure | {"step": 20,
                                                                                                  "trainer_frozen_at": 15}]}
     rows = reward_measures.table(results).splitlines()
     assert rows[1].split("\t") == ["10", "0.12", "0.500", "-0.250", "0.750", "-", "0.700", "0.300", "-", "0.050", "2.000",
-                                   "-", "0.100", "learning"]
+                                   "0.040", "-", "0.100", "learning"]
     assert rows[2].split("\t")[1] == "-" and rows[2].endswith("frozen at 15")
     (tmp_path / "old.json").write_text(json.dumps({"evals": []}))
     with pytest.raises(SystemExit, match="no reward_measures"):
