@@ -33,7 +33,8 @@ Implementation choices and deviations
    never loaded. DRAIL-RILe's trainer observes (s, a_S) or, with `--trainer-obs transition`, (s, s'), as in
    rile.py (its choice 10), with the same refusals. Its trainer batches hold no expert pairs by default
    (`--trainer-expert-fraction 0`, the paper's; rile.py's choice 8 puts a tenth there), and its trainer discounts
-   by the paper's 0.99 (`--trainer-gamma`; rile.py's choice 11 uses 0.9, measured there only).
+   by the paper's 0.99 (`--trainer-gamma`; rile.py's choice 11 uses 0.9, measured there only) and its freeze test
+   reads the whole critic loss (`--trainer-freeze-stat reward`; rile.py's choice 5 subtracts the targets' variance).
 
 Logged metrics (both variants; trainer_* in DRAIL-RILe only): charts/episodic_return, charts/SPS, eval/return,
 eval/normalized_return, losses/{student,trainer}_{qf_loss,qf_values,actor_loss,alpha_loss,alpha,entropy},
@@ -429,13 +430,12 @@ def mix_expert(batch: "Batch", expert: dict, fraction: float, trainer: Optional[
 
 def freeze_test(critic_loss, target_var, reward_var, args, state: dict, step: int) -> None:
     """Freeze the trainer "once its critic network converges" (the paper's appendix; its threshold, not its test).
-    The statistic, a moving average (0.99) over updates, is by default the critics' TD loss relative to the
-    variance of the trainer's reward r_T in the batch (--trainer-freeze-stat reward): the critic must resolve that
-    variation for its action to matter, whatever the reward's scale. `relative` divides by the variance of the TD
-    targets instead (met by the value's spread across states), `loss` is the raw TD loss. It must stay below the
-    threshold for --trainer-freeze-window steps, and the freeze never comes before --trainer-freeze-after (3/4 of the
-    run by default: the paper freezes "midway", its maze figure's reward still moves at 75 %, and the student is
-    not to be confused "in the later stages of training")."""
+    The statistic (--trainer-freeze-stat, see freeze_statistic) is a moving average (0.99) over updates of the
+    critics' TD loss: beyond its targets' own variance and relative to the variance of the trainer's reward r_T
+    (`excess`), relative to r_T's variance (`reward`) or to the TD targets' (`relative`), or raw (`loss`). It must
+    stay below the threshold for --trainer-freeze-window steps, and the freeze never comes before
+    --trainer-freeze-after (3/4 of the run by default: the paper freezes "midway", its maze figure's reward still
+    moves at 75 %, and the student is not to be confused "in the later stages of training")."""
     ema = lambda name, x: torch.where(state[name].isfinite(), torch.lerp(state[name], x, 0.01), x)  # inf: no average yet
     for name, x in (("critic_loss_ema", critic_loss), ("target_var_ema", target_var), ("reward_var_ema", reward_var)):
         state[name] = ema(name, x)

@@ -27,19 +27,18 @@ Implementation choices and deviations
    pooled (`--disc-normalize pooled`): what separates the two is then a few units in every env. The paper's D:
    `--disc-gp-center 1 --disc-normalize none`; also `--disc-normalize demos` and `--disc-update-every`.
 5. Freezing: the paper freezes the trainer "once its critic network converges" (threshold 0.1), so that the
-   student is not confused "in the later stages of training", and names no test. Ours: a moving average
-   (0.99) of the critic's TD loss relative to the variance of the trainer's reward r_T in its batches stays below
-   the threshold for `--trainer-freeze-window` steps, never before `--trainer-freeze-after` (3/4 of the run: the
-   paper's maze figure still shows the reward moving at 75 %). The critic has converged when its error is small
-   beside the variation of the reward it learns, which is what its action changes: a raw loss is met by any flat
-   target, and a loss relative to the targets' variance (`--trainer-freeze-stat relative`) by the value's spread
-   across states, under 0.1 from 20k on Hopper-v4 while the error was still larger than r_T's variance; frozen
-   there, the reward was exploited by the student (docs/reward-that-teaches.md). The earlier rules:
-   `--trainer-freeze-stat relative`, and `--trainer-freeze-stat loss --trainer-freeze-window 0
-   --trainer-freeze-after 0`; `--no-trainer-freeze` turns it off. D keeps training. Part of any TD loss is the
-   variance of its sampled targets (a'_S, a'_T), which no critic removes: 0.16-0.17 of r_T's variance at discount 0.9
-   on Hopper-v4, Walker2d-v4 and HalfCheetah-v4, so there the default never fires. `--trainer-freeze-stat excess`
-   subtracts it (estimated every 10 steps from two more draws) and tests what is left (0.04-0.07 there).
+   student is not confused "in the later stages of training", and names no test. Ours: a moving average (0.99) of
+   the critic's TD loss beyond what no critic removes (the variance of its own sampled targets, from a'_S and a'_T,
+   estimated every 10 steps from two more draws), relative to the variance of the trainer's reward r_T in its
+   batches, stays below the threshold for `--trainer-freeze-window` steps, never before `--trainer-freeze-after`
+   (3/4 of the run: the paper's maze figure still shows the reward moving at 75 %). The critic has converged when
+   its error is small beside the variation of the reward it learns, which is what its action changes. A raw loss
+   is met by any flat target; a loss relative to the targets' variance (`--trainer-freeze-stat relative`) by the
+   value's spread across states (under 0.1 from 20k on Hopper-v4 while the error was larger than r_T's variance;
+   frozen there, the reward was exploited); the whole loss relative to r_T's variance (`reward`) by nothing at
+   discount 0.9, where the targets' own variance is 0.16-0.17 of r_T's (docs/reward-that-teaches.md). The earlier
+   rules: `--trainer-freeze-stat reward`, `relative`, and `loss --trainer-freeze-window 0 --trainer-freeze-after 0`;
+   `--no-trainer-freeze` turns it off. D keeps training.
 6. Termination bias (the paper is silent): r_S = a_T can be negative, which pays the student to end episodes
    early. `--termination-remedy none` is the paper-literal reward, `survival` pays (1 + a_T) / 2, `absorbing`
    (default) adds DAC's absorbing states to the student's and the expert's data alike: a termination leads to
@@ -182,7 +181,7 @@ class Args:
     """the trainer's target smoothing coefficient"""
     trainer_freeze: bool = True
     """freeze the trainer once its critic has converged (header, choice 5)"""
-    trainer_freeze_stat: Literal["relative", "reward", "excess", "loss"] = "reward"
+    trainer_freeze_stat: Literal["relative", "reward", "excess", "loss"] = "excess"
     """relative: the trainer's critic loss over the variance of its targets; reward: over the variance of its reward r_T;
     excess: what of it exceeds its targets' own sampling variance, over r_T's variance; loss: the raw critic loss"""
     trainer_freeze_threshold: float = 0.1
@@ -440,13 +439,12 @@ def mix_expert(batch: "Batch", expert: dict, fraction: float, trainer: Optional[
 
 def freeze_test(critic_loss, target_var, reward_var, args, state: dict, step: int) -> None:
     """Freeze the trainer "once its critic network converges" (the paper's appendix; its threshold, not its test).
-    The statistic, a moving average (0.99) over updates, is by default the critics' TD loss relative to the
-    variance of the trainer's reward r_T in the batch (--trainer-freeze-stat reward): the critic must resolve that
-    variation for its action to matter, whatever the reward's scale. `relative` divides by the variance of the TD
-    targets instead (met by the value's spread across states), `loss` is the raw TD loss. It must stay below the
-    threshold for --trainer-freeze-window steps, and the freeze never comes before --trainer-freeze-after (3/4 of the
-    run by default: the paper freezes "midway", its maze figure's reward still moves at 75 %, and the student is
-    not to be confused "in the later stages of training")."""
+    The statistic (--trainer-freeze-stat, see freeze_statistic) is a moving average (0.99) over updates of the
+    critics' TD loss: beyond its targets' own variance and relative to the variance of the trainer's reward r_T
+    (`excess`), relative to r_T's variance (`reward`) or to the TD targets' (`relative`), or raw (`loss`). It must
+    stay below the threshold for --trainer-freeze-window steps, and the freeze never comes before
+    --trainer-freeze-after (3/4 of the run by default: the paper freezes "midway", its maze figure's reward still
+    moves at 75 %, and the student is not to be confused "in the later stages of training")."""
     ema = lambda name, x: torch.where(state[name].isfinite(), torch.lerp(state[name], x, 0.01), x)  # inf: no average yet
     for name, x in (("critic_loss_ema", critic_loss), ("target_var_ema", target_var), ("reward_var_ema", reward_var)):
         state[name] = ema(name, x)

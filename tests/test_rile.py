@@ -161,9 +161,10 @@ def test_freezing_stops_trainer_updates_and_only_those():
 
 
 def freeze_step(critic_loss: float, target_var: float, total: int = 1000, reward_var: float = 1.0, state=None, **kw):
-    """The step at which freeze_test freezes a trainer whose critic loss and target and reward variances stay constant."""
+    """The step at which freeze_test freezes a trainer whose critic loss and target and reward variances stay constant
+    (and whose TD targets have no variance of their own unless `state` gives one)."""
     args = tiny_args(total_timesteps=total, **({"trainer_freeze_min_updates": 0, "trainer_freeze_window": 200} | kw))
-    state = rile.rile_state("cpu") | (state or {})
+    state = rile.rile_state("cpu") | {"target_noise_ema": torch.tensor(0.0)} | (state or {})
     for step in range(1, total + 1):
         rile.freeze_test(torch.tensor(critic_loss), torch.tensor(target_var), torch.tensor(reward_var), args, state, step)
         if state["frozen_at"] is not None:
@@ -190,7 +191,7 @@ def test_a_flat_target_does_not_pass_for_convergence():
 def test_a_critic_whose_error_exceeds_the_reward_s_variation_has_not_converged():
     # Hopper-v4's trainer at 124k: TD loss 0.077 (two critics), targets' variance 1.65, r_T's 0.023
     assert freeze_step(0.077, 1.65, reward_var=0.023, trainer_freeze_stat="relative") == 800  # 0.023: frozen at the guard
-    assert freeze_step(0.077, 1.65, reward_var=0.023) is None  # the default, relative to r_T's variance, 1.67: learning
+    assert freeze_step(0.077, 1.65, reward_var=0.023) is None  # the default, relative to r_T's variance: 1.67, learning
     assert freeze_step(0.001, 1.65, reward_var=0.023) == 800  # 0.022: resolved
 
 
@@ -211,8 +212,8 @@ def test_a_converged_critic_at_its_targets_noise_floor_passes_only_the_excess_te
     # Walker2d-v4's trainer at 200k (discount 0.9): TD loss 2 x 0.00475, of it 2 x 0.00384 the targets' own variance,
     # r_T's variance 0.0218: 0.218 relative to r_T's variance, 0.04 beyond the floor
     noise = {"target_noise_ema": torch.tensor(0.00384)}
-    assert freeze_step(0.0095, 0.03, reward_var=0.0218, state=noise) is None  # 0.218 of r_T's variance: never
-    assert freeze_step(0.0095, 0.03, reward_var=0.0218, state=noise, trainer_freeze_stat="excess") == 800  # 0.042
+    assert freeze_step(0.0095, 0.03, reward_var=0.0218, state=noise, trainer_freeze_stat="reward") is None  # 0.218: never
+    assert freeze_step(0.0095, 0.03, reward_var=0.0218, state=noise) == 800  # the default, excess: 0.042
 
 
 def test_the_targets_noise_estimate_by_hand_and_the_random_stream_it_leaves_alone():
