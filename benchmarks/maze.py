@@ -12,9 +12,9 @@
    the lengths and widths that keep the experiment short on a CPU (--learning-starts 1000, --eval-episodes 2,
    --hidden-dim 64 for the SAC networks and rile.py's trainer: a 2-D point needs no wider ones), in
    --segments segments of --segment-steps env steps (`reward_dynamics.py train`: one --resume per segment,
-   the learned reward kept after each). rile.py runs twice: as it is, and with a trainer that freezes
-   early (the earlier test, `--trainer-freeze-stat relative`, without the guard that keeps the freeze from the first
-   three quarters of the run: `--trainer-freeze-after 0`), to show what freezing the trainer does to the picture.
+   the learned reward kept after each). rile.py runs twice: as it is (its trainer freezes at 3/4 of the run at the
+   earliest), and with a trainer that freezes early (the rule before issue 28: the raw critic loss under 0.1, no
+   window, no guard), to show what freezing the trainer early does to the picture.
 3. Figure 1 (benchmarks/results/maze_rewards.png): one row per method, one column per quarter of
    training; each panel is the learned reward on a grid of positions (`Snapshot.state_reward`: at each
    position s, the reward of the pair (s, pi(s)) with pi(s) the same snapshot's deterministic action; for
