@@ -159,6 +159,8 @@ class Args:
     """never freeze before this env step (default: 3/4 of --total-timesteps)"""
     trainer_freeze_min_updates: int = 10_000
     """never freeze before this many trainer updates"""
+    trainer_release_threshold: float = 1.0
+    """a frozen trainer learns again when the statistic, on D's current rewards, rises above this (inf: never)"""
     trainer_obs: Literal["state-action", "transition"] = "state-action"
     """rile: what the trainer observes: the student's (s, a_S) (paper), or its transition (s, s') (needs --state-only)"""
 
@@ -335,30 +337,41 @@ def rile_update(student: "SAC", trainer: "SAC", disc: nn.Module, rb: "ReplayBuff
         policy = rb.sample(args.disc_batch_size, recent=args.disc_buffer_size)
         metrics |= disc.update(torch.cat([expert["obs"][idx], expert[seen][idx]], -1),
                                torch.cat([policy.obs, getattr(policy, seen)], -1))
-    if state["frozen_at"] is not None:
+    frozen = state["frozen_at"] is not None
+    if frozen and (step % 10 or args.trainer_release_threshold == float("inf")):
         return metrics
-    # (3) trainer: SAC on its recent transitions (o_T, a_T as stored, o_T'), r_T from the current discriminator
-    idx = rb.indices(args.trainer_batch_size, recent=args.trainer_buffer_size)
-    batch = mix_expert(rb.batch(idx), expert, args.trainer_expert_fraction, trainer, args.trainer_obs)
-    obs_trainer, a_trainer = trainer_input(batch.obs, batch.actions, batch.next_obs, args.trainer_obs), batch.extra
+    # (3) trainer: SAC on its recent transitions (o_T, a_T as stored, o_T'), r_T from the current discriminator. A frozen
+    # trainer is only watched, every 10 steps (its critics' loss, which may release it: freeze_test), with the random
+    # stream restored after it, so that the run is the same as with no watching until it is released
+    devices = [torch.cuda.current_device()] if expert["obs"].is_cuda else []
+    with torch.random.fork_rng(devices, enabled=frozen):
+        idx = rb.indices(args.trainer_batch_size, recent=args.trainer_buffer_size)
+        batch = mix_expert(rb.batch(idx), expert, args.trainer_expert_fraction, trainer, args.trainer_obs)
+        obs_trainer, a_trainer = trainer_input(batch.obs, batch.actions, batch.next_obs, args.trainer_obs), batch.extra
 
-    def next_obs_trainer():  # o_T' = (s', s'') as the student went on, or (s', a'_S) with a fresh a'_S (header, choice 2)
-        if args.trainer_obs == "transition":
-            return torch.cat([batch.next_obs, successor_next_obs(rb, idx, batch)], -1)
-        return torch.cat([batch.next_obs, student.policy(batch.next_obs)[0]], -1)
-    with torch.no_grad():
-        d = disc.prob(torch.cat([batch.obs, getattr(batch, seen)], -1))
-        r_trainer = TRAINER_REWARDS[args.trainer_reward](d, a_trainer.squeeze(-1))
-        o_next = next_obs_trainer()
-    metrics |= trainer.update(obs_trainer, a_trainer, o_next, r_trainer, batch.terminations, prefix="losses/trainer_")
-    metrics["reward/trainer_reward_mean"] = r_trainer.mean()
-    if step % 10 == 0:  # the TD targets' own variance over a'_S and a'_T, a part of the TD loss no critic can remove:
-        # two more draws, with the random stream restored after them so that they change nothing else in the run
-        with torch.random.fork_rng(devices=[torch.cuda.current_device()] if r_trainer.is_cuda else []), torch.no_grad():
-            y1, y2 = (trainer.td_target(next_obs_trainer(), r_trainer, batch.terminations) for _ in range(2))
-        noise, prev = 0.5 * (y1 - y2).pow(2).mean(), state["target_noise_ema"]
-        state["target_noise_ema"] = torch.where(prev.isfinite(), torch.lerp(prev, noise, 0.1), noise)
-    freeze_test(metrics["losses/trainer_qf_loss"], metrics["losses/trainer_qf_target_var"], r_trainer.var(), args, state, step)
+        def next_obs_trainer():  # o_T' = (s', s'') as the student went on, or (s', a'_S) with a fresh a'_S (choice 2)
+            if args.trainer_obs == "transition":
+                return torch.cat([batch.next_obs, successor_next_obs(rb, idx, batch)], -1)
+            return torch.cat([batch.next_obs, student.policy(batch.next_obs)[0]], -1)
+        with torch.no_grad():
+            d = disc.prob(torch.cat([batch.obs, getattr(batch, seen)], -1))
+            r_trainer = TRAINER_REWARDS[args.trainer_reward](d, a_trainer.squeeze(-1))
+            o_next = next_obs_trainer()
+        if frozen:
+            with torch.no_grad():
+                loss, _, target_var = trainer.critic_loss(obs_trainer, a_trainer, o_next, r_trainer, batch.terminations)
+            metrics |= {"losses/trainer_qf_loss": loss, "losses/trainer_qf_target_var": target_var}
+        else:
+            metrics |= trainer.update(obs_trainer, a_trainer, o_next, r_trainer, batch.terminations, prefix="losses/trainer_")
+        metrics["reward/trainer_reward_mean"] = r_trainer.mean()
+        if step % 10 == 0:  # the TD targets' own variance over a'_S and a'_T, a part of the TD loss no critic can remove:
+            # two more draws, with the random stream restored after them so that they change nothing else in the run
+            with torch.random.fork_rng(devices), torch.no_grad():
+                y1, y2 = (trainer.td_target(next_obs_trainer(), r_trainer, batch.terminations) for _ in range(2))
+            noise, prev = 0.5 * (y1 - y2).pow(2).mean(), state["target_noise_ema"]
+            state["target_noise_ema"] = torch.where(prev.isfinite(), torch.lerp(prev, noise, 0.1), noise)
+        freeze_test(metrics["losses/trainer_qf_loss"], metrics["losses/trainer_qf_target_var"], r_trainer.var(), args, state,
+                    step)
     return metrics
 
 
@@ -435,14 +448,22 @@ def freeze_test(critic_loss, target_var, reward_var, args, state: dict, step: in
     (`excess`), relative to r_T's variance (`reward`) or to the TD targets' (`relative`), or raw (`loss`). It must
     stay below the threshold for --trainer-freeze-window steps, and the freeze never comes before
     --trainer-freeze-after (3/4 of the run by default: the paper freezes "midway", its maze figure's reward still
-    moves at 75 %, and the student is not to be confused "in the later stages of training")."""
+    moves at 75 %, and the student is not to be confused "in the later stages of training"). A frozen trainer is
+    watched (rile_update): once its critics' statistic on D's current rewards passes --trainer-release-threshold, it
+    has stopped fitting them (the student has moved where the fixed reward is wrong), and it learns again."""
     ema = lambda name, x: torch.where(state[name].isfinite(), torch.lerp(state[name], x, 0.01), x)  # inf: no average yet
     for name, x in (("critic_loss_ema", critic_loss), ("target_var_ema", target_var), ("reward_var_ema", reward_var)):
         state[name] = ema(name, x)
-    state["trainer_updates"] += 1
+    state["trainer_updates"] += state["frozen_at"] is None
     if not args.trainer_freeze or step % 100:  # reading the statistic synchronises: every 100 steps
         return
     statistic = freeze_statistic(state, args.trainer_freeze_stat)
+    if state["frozen_at"] is not None:  # watched: a critic that no longer fits what D says now has not converged
+        if statistic > args.trainer_release_threshold:
+            state["released_at"].append(step)
+            state["frozen_at"] = state["below_since"] = None
+            print(f"trainer released at step {step} ({args.trainer_freeze_stat} critic loss {statistic:.4f})", flush=True)
+        return
     if statistic >= args.trainer_freeze_threshold:
         state["below_since"] = None
         return
@@ -469,7 +490,8 @@ def rile_state(device) -> dict:
     """The trainer's bookkeeping, saved in every checkpoint."""
     inf = torch.tensor(float("inf"), device=device)
     return {"frozen_at": None, "reward_only": False, "trainer_updates": 0, "critic_loss_ema": inf,
-            "target_var_ema": inf.clone(), "reward_var_ema": inf.clone(), "target_noise_ema": inf.clone(), "below_since": None}
+            "target_var_ema": inf.clone(), "reward_var_ema": inf.clone(), "target_noise_ema": inf.clone(),
+            "below_since": None, "released_at": []}
 
 
 def check_rile_args(args):

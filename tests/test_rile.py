@@ -216,6 +216,32 @@ def test_a_converged_critic_at_its_targets_noise_floor_passes_only_the_excess_te
     assert freeze_step(0.0095, 0.03, reward_var=0.0218, state=noise) == 800  # the default, excess: 0.042
 
 
+def test_a_frozen_trainer_is_watched_without_changing_the_run_and_released_once_its_critic_no_longer_fits():
+    out, rng, student_after = {}, {}, {}
+    for threshold in (float("inf"), 1e9):  # not watched; watched every 10 steps and never released
+        args = tiny_args(trainer_release_threshold=threshold)
+        student, trainer, disc, rb, expert, state = learners(args)
+        state["frozen_at"] = 5
+        before = params(trainer.actor), params(trainer.qf)
+        torch.manual_seed(1)
+        out[threshold] = rile.rile_update(student, trainer, disc, rb, expert, args, state, 100)
+        rng[threshold], student_after[threshold] = torch.get_rng_state(), params(student.actor)
+        assert not changed(before[0], trainer.actor) and not changed(before[1], trainer.qf) and state["frozen_at"] == 5
+    assert torch.equal(rng[float("inf")], rng[1e9])
+    assert all(torch.equal(a, b) for a, b in zip(student_after[float("inf")], student_after[1e9]))
+    assert "losses/trainer_qf_loss" in out[1e9] and "losses/trainer_qf_loss" not in out[float("inf")]
+    # by hand: excess statistic (loss - 2 x noise) / (2 x r_T's variance) = (0.5 - 0.1) / 0.4 = 1.0, not above 1: frozen
+    args = tiny_args(total_timesteps=2000)
+    state = rile.rile_state("cpu") | {"frozen_at": 800, "trainer_updates": 900, "critic_loss_ema": torch.tensor(0.5),
+                                      "target_var_ema": torch.tensor(1.0), "reward_var_ema": torch.tensor(0.2),
+                                      "target_noise_ema": torch.tensor(0.05)}
+    rile.freeze_test(torch.tensor(0.5), torch.tensor(1.0), torch.tensor(0.2), args, state, 1000)
+    assert state["frozen_at"] == 800 and state["released_at"] == []
+    # a loss of 0.6 moves the average to 0.501: (0.501 - 0.1) / 0.4 = 1.0025, released; no update counted while frozen
+    rile.freeze_test(torch.tensor(0.6), torch.tensor(1.0), torch.tensor(0.2), args, state, 1100)
+    assert state["frozen_at"] is None and state["released_at"] == [1100] and state["trainer_updates"] == 900
+
+
 def test_the_targets_noise_estimate_by_hand_and_the_random_stream_it_leaves_alone():
     args = tiny_args(termination_remedy="none", trainer_buffer_size=20)
     after = {}
