@@ -443,14 +443,15 @@ def mix_expert(batch: "Batch", expert: dict, fraction: float, trainer: Optional[
 
 def freeze_test(critic_loss, target_var, reward_var, args, state: dict, step: int) -> None:
     """Freeze the trainer "once its critic network converges" (the paper's appendix; its threshold, not its test).
-    The statistic (--trainer-freeze-stat, see freeze_statistic) is a moving average (0.99) over updates of the
-    critics' TD loss: beyond its targets' own variance and relative to the variance of the trainer's reward r_T
-    (`excess`), relative to r_T's variance (`reward`) or to the TD targets' (`relative`), or raw (`loss`). It must
-    stay below the threshold for --trainer-freeze-window steps, and the freeze never comes before
-    --trainer-freeze-after (3/4 of the run by default: the paper freezes "midway", its maze figure's reward still
-    moves at 75 %, and the student is not to be confused "in the later stages of training"). A frozen trainer is
-    watched (rile_update): once its critics' statistic on D's current rewards passes --trainer-release-threshold, it
-    has stopped fitting them (the student has moved where the fixed reward is wrong), and it learns again."""
+    The statistic (--trainer-freeze-stat, see freeze_statistic) is a moving average (0.99) over updates (over the
+    watches, every 10 steps, while frozen) of the critics' TD loss: beyond its targets' own variance and relative to
+    the variance of the trainer's reward r_T (`excess`), relative to r_T's variance (`reward`) or to the TD targets'
+    (`relative`), or raw (`loss`). It must stay below the threshold for --trainer-freeze-window steps, and the
+    freeze never comes before --trainer-freeze-after (3/4 of the run by default: the paper freezes "midway", its
+    maze figure's reward still moves at 75 %, and the student is not to be confused "in the later stages of
+    training"). A frozen trainer is watched (rile_update): once its critics' statistic on D's current rewards passes
+    --trainer-release-threshold, it has stopped fitting them (the student has moved where the fixed reward is
+    wrong), and it learns again."""
     ema = lambda name, x: torch.where(state[name].isfinite(), torch.lerp(state[name], x, 0.01), x)  # inf: no average yet
     for name, x in (("critic_loss_ema", critic_loss), ("target_var_ema", target_var), ("reward_var_ema", reward_var)):
         state[name] = ema(name, x)
