@@ -1,6 +1,9 @@
 """Every script on a GPU: a short run with --cuda, stopped and resumed from its checkpoint, then its actor (and
 RILe's reward) used on the CPU. Skipped where torch sees no GPU (CI); run by hand on a GPU machine:
-`python -m pytest -q tests/test_cuda.py`."""
+`python -m pytest -q tests/test_cuda.py`
+(leave MUJOCO_GL unset where the machine has no libEGL: MUJOCO_GL=egl fails at `import mujoco` there).
+Last run: 9 passed in 294 s on one H200 (torch 2.11.0+cu130, Python 3.12, gymnasium 1.4.0, mujoco 4.0.0), code
+2bc1850, 2026-12-04."""
 import json
 
 import pytest
