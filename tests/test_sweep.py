@@ -70,13 +70,25 @@ def test_report_table_plot_and_readme(results_dir, tmp_path):
     readme.write_text(f"# x\n\n{sweep.README_START}\nold\n{sweep.README_END}\n\nafter\n")
     text = sweep.report(str(results_dir), readme=str(readme))
     # gail: finals 1000, 2000, 3000 -> 2000 +- 577.4 (s.d. 1000 / sqrt 3); normalized 0.5 +- 0.144
-    assert "| gail | 3 | 2000.0 ± 577.4 | 0.500 ± 0.144 | 0.500 [0.250, 0.750] | 2000 | 2.00 | 3361 |" in text
-    assert "| rile | 1 | 3500.0 | 1.000 | 1.000 [1.000, 1.000] | 3000 | 1.00 | 3417 |" in text
+    # last quarter: the evaluations after 3/4 of the steps, here the final one alone
+    assert "| gail | 3 | 2000.0 ± 577.4 | 0.500 ± 0.144 | 0.500 [0.250, 0.750] | 0.500 ± 0.144 | 2000 | 2.00 | 3361 |" in text
+    assert "| rile | 1 | 3500.0 | 1.000 | 1.000 [1.000, 1.000] | 1.000 | 3000 | 1.00 | 3417 |" in text
     png = results_dir / "Hopper-v4.png"
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 5000
     content = readme.read_text()
     assert "old" not in content and "| gail | 3 |" in content and content.endswith("after\n")
     assert (results_dir / "REPORT.md").read_text() == text
+
+
+def test_last_quarter_averages_the_evaluations_after_three_quarters_of_the_steps(results_dir):
+    """A run that swings: 8 evaluations at 1k..8k, the last quarter is 7k and 8k (6k is exactly 3/4, left out)."""
+    for seed, curve in ((1, [0, 0, 0, 0, 0, 4000, 1000, 3000]), (2, [0, 0, 0, 0, 0, 0, 3000, 4000])):
+        (results_dir / "Hopper-v4" / f"swing__{seed}.json").write_text(json.dumps(fake_result("swing", seed, curve, 4000.0)))
+    # seed 1: (0.25 + 0.75) / 2 = 0.5; seed 2: (0.75 + 1) / 2 = 0.875; over seeds 0.6875 +- 0.1875, printed 0.187
+    assert "| swing | 2 | 3500.0 ± 500.0 | 0.875 ± 0.125 | 0.875 [0.750, 1.000] | 0.688 ± 0.187 | 8000 |" in (
+        sweep.report(str(results_dir), readme=None))
+    r = fake_result("raw", 1, [5.0, 7.0, 9.0, 11.0, 13.0])  # no expert return: returns, not normalized
+    assert sweep.last_quarter(r, normalize=False) == 12.0  # 4k and 5k, after 3.75k: (11 + 13) / 2
 
 
 def test_normalized_score_is_zero_for_random_and_one_for_the_expert():
