@@ -18,6 +18,7 @@ benchmarks/results/<env-id>/<algo>__<seed>.json, with the command that produced 
 """
 
 import argparse
+import contextlib
 import json
 import math
 import os
@@ -69,12 +70,13 @@ class Job:
     def result_path(self, results_dir: str = RESULTS_DIR) -> str:
         return os.path.join(results_dir, self.env_id, f"{self.algo}__{self.seed}.json")
 
-    def command(self) -> List[str]:
+    def command(self, resume: Optional[bool] = None) -> List[str]:
+        """The script's command line; with --resume where a checkpoint exists (resume=None) or where told."""
         cmd = [sys.executable, os.path.join(ROOT, self.script), "--env-id", self.env_id, "--seed", str(self.seed),
                "--total-timesteps", str(self.total_timesteps), "--run-name", self.run_name, *self.extra]
         if os.path.basename(self.script) == "expert.py":
             cmd.append("--no-record-demos")  # a benchmark run must not overwrite the shipped experts/
-        if os.path.exists(os.path.join(self.run_dir, "checkpoint.pt")):
+        if resume or resume is None and os.path.exists(os.path.join(self.run_dir, "checkpoint.pt")):
             cmd += ["--resume", self.run_dir]
         return cmd
 
@@ -120,7 +122,8 @@ def run_job(job: Job, results_dir: str = RESULTS_DIR) -> str:
         return f"{job.run_name}: already done"
     results = read_run_results(job)
     if results and results.get("finished") and results["config"].get("total_timesteps") == job.total_timesteps:
-        return collect(job, results, job.command(), results_dir)  # finished, but its result was never copied
+        # finished, but its result was never copied: the command it last ran with, resumed or not
+        return collect(job, results, job.command(resume=bool(results["config"].get("resume"))), results_dir)
     os.makedirs(job.run_dir, exist_ok=True)
     lock = os.path.join(job.run_dir, "sweep.lock")
     with open(lock, "w") as f:
@@ -132,7 +135,8 @@ def run_job(job: Job, results_dir: str = RESULTS_DIR) -> str:
             log.flush()
             rc = subprocess.run(cmd, stdout=log, stderr=subprocess.STDOUT).returncode
     finally:
-        os.remove(lock)
+        with contextlib.suppress(FileNotFoundError):  # removed by hand while the job ran
+            os.remove(lock)
     if rc != 0:
         return f"{job.run_name}: exit code {rc} (log: {job.run_dir}.log); run the sweep again to resume it"
     results = read_run_results(job)

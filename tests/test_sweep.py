@@ -178,6 +178,22 @@ def test_interrupted_job_resumes_finished_job_is_skipped(tmp_path):
     assert "1 of 1 jobs already done; running 0" in third.stdout
 
 
+def test_a_finished_run_whose_result_was_not_copied_is_collected_with_the_command_it_ran(tmp_path, monkeypatch):
+    """A sweep stopped between a job's end and the copy (or one whose lock was removed by hand) collects it on the
+    next call, recording --resume only where the run was resumed."""
+    monkeypatch.chdir(tmp_path)
+    for seed, resumed in ((1, None), (2, "runs/bench__Hopper-v4__expert__2")):
+        job = sweep.Job("expert.py", "Hopper-v4", seed, 2000, ["--threads", "1"])
+        os.makedirs(job.run_dir)
+        open(os.path.join(job.run_dir, "checkpoint.pt"), "w").close()
+        finished = fake_result("expert", seed, [1.0, 2.0]) | {"config": {"total_timesteps": 2000, "resume": resumed}}
+        (tmp_path / job.run_dir / "results.json").write_text(json.dumps(finished))
+        assert sweep.run_job(job, str(tmp_path / "results")).endswith("done, final return 2.0")
+        command = json.loads((tmp_path / "results/Hopper-v4" / f"expert__{seed}.json").read_text())["command"]
+        assert command.startswith(f"python expert.py --env-id Hopper-v4 --seed {seed} --total-timesteps 2000")
+        assert ("--resume" in command) == bool(resumed)
+
+
 def test_submitit_launcher_path(tmp_path, monkeypatch):
     pytest.importorskip("submitit")
     monkeypatch.chdir(tmp_path)
