@@ -179,8 +179,8 @@ def test_interrupted_job_resumes_finished_job_is_skipped(tmp_path):
 
 
 def test_a_finished_run_whose_result_was_not_copied_is_collected_with_the_command_it_ran(tmp_path, monkeypatch):
-    """A sweep stopped between a job's end and the copy (or one whose lock was removed by hand) collects it on the
-    next call, recording --resume only where the run was resumed."""
+    """A sweep stopped between a job's end and the copy collects the result on its next call, recording --resume
+    only where the run was resumed (it used to add --resume to any run that had a checkpoint)."""
     monkeypatch.chdir(tmp_path)
     for seed, resumed in ((1, None), (2, "runs/bench__Hopper-v4__expert__2")):
         job = sweep.Job("expert.py", "Hopper-v4", seed, 2000, ["--threads", "1"])
