@@ -21,7 +21,7 @@ Implementation choices and deviations
 4. Discriminator (gail.py's block and defaults): 64-64 tanh, BCE, lr 3e-5, 32 + 32 pairs, one update per env
    step, and the paper's gradient penalty weight (1) in DAC's one-centred form on raw inputs (the paper names the
    weight, not the form). Issue 28 first made it zero-centred (Mescheder et al. 2018) on inputs standardised by the
-   running statistics of D's batches (`--disc-gp-center 0 --disc-normalize pooled`), which holds D at 0.3-0.4 on the
+   running statistics of D's batches (`--disc-gp-center 0 --disc-normalize pooled`), which holds D at 0.24-0.44 on the
    student's pairs in every env; but once the student's temperature is tuned (7) and the trainer sees expert pairs
    (8), the paper's D teaches as well or better: Hopper-v4 seed 1 0.97 (0.42 with the standardised D), HalfCheetah-v4
    1.03, gail.py's Hopper-v4 0.86 against 0.76. On HalfCheetah-v4 it starts at its floor on the student's pairs (0.03
