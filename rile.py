@@ -71,7 +71,9 @@ Implementation choices and deviations
    discount only sets how far its critic bootstraps. At 0.99 its values span [0, 100]; on Walker2d-v4 its critic
    diverged (Q-values -61), r_S stopped following D and the student stayed at 0.03-0.07 (2 seeds, 200k). At 0.9 its
    Q-values stay at 8.1, r_S follows D at 0.93-0.99 to the end and the student reached 0.43 (seed 1; gail.py 0.42)
-   (docs/reward-that-teaches.md).
+   (docs/reward-that-teaches.md). A corner of its critic can still run away for a while at 0.9 (Hopper-v4 seed 2,
+   32-43k: values of -98 at 35k on 0.3 % of its window, recovered by 50k); `--trainer-gamma 0`, which leaves nothing to
+   bootstrap, is the cure to measure next.
 
 Logged metrics: charts/episodic_return, charts/SPS, eval/return, eval/normalized_return,
 losses/{student,trainer}_{qf_loss,qf_values,qf_target_var,actor_loss,alpha_loss,alpha,entropy}, losses/disc_loss,

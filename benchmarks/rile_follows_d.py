@@ -4,8 +4,9 @@ trainer's reward is fitted (the student's pairs) and where it is an extrapolatio
 Then the freeze test's statistic on one batch of the trainer's window (its two critics' TD loss relative to the
 variance of their targets) beside the same loss relative to the variance of the reward r_T itself: whether the
 critic has resolved what its action controls; and that loss split into the variance of its sampled targets, which
-no critic removes, and the error beyond it. For runs with `--termination-remedy absorbing` and the trainer
-observing (s, a_S).
+no critic removes, and the error beyond it. Last, the value the critics bootstrap from on every row of the trainer's
+window: a runaway in a corner of it shows as a few rows far below the rest. For runs with `--termination-remedy
+absorbing` and the trainer observing (s, a_S).
 
     python benchmarks/rile_follows_d.py runs/bench__Hopper-v4__rile-s-pooled-alpha02__1 --recent 10000
 """
@@ -77,6 +78,25 @@ def main():
           f"{loss / (2 * r_trainer.var()):.2f}")
     print(f"per critic, relative to r_T's variance: the targets' own variance {floor / r_trainer.var():.3f}, the error "
           f"beyond it {beyond / r_trainer.var():.3f} (--trainer-freeze-stat excess)")
+    # The value the critics bootstrap from, min_i Q'_i(o_T', a'_T), on every row of the window: o_T' = (s', a'_S) with
+    # the current student's mean action (as rile_update, but no sample) or the action stored in the row after (as the
+    # student went on); a'_T the trainer's mean action. A local runaway shows as a few rows far below the rest.
+    with torch.no_grad():
+        idx = (rb.pos - torch.arange(min(rb.size, args.trainer_buffer_size), 0, -1)) % rb.size  # oldest to newest
+        window, following = rb.batch(idx), rb.batch((idx + 1) % rb.size)
+        mean_action = student.actor.deterministic(window.next_obs[:, :-1]) * (1 - window.next_obs[:, -1:])  # 0 if absorbing
+        fresh = torch.cat([window.next_obs, mean_action], -1)
+        stored = torch.cat([window.next_obs, following.actions], -1)
+        continues = (following.obs == window.next_obs).all(-1)
+        value = lambda o: trainer.qf_target(o, trainer.actor.deterministic(o)).min(0).values
+        v_fresh, v_stored = value(fresh), value(stored)
+        u = trainer.actor(torch.cat([window.obs, window.actions], -1))[0].abs().max()
+    quantiles = (0.0, 0.001, 0.01, 0.5, 1.0)
+    print(f"the critics' value of o_T' over the window's {len(idx)} rows, quantiles {quantiles}: "
+          + " ".join(f"{q:.2f}" for q in torch.quantile(v_fresh, torch.tensor(quantiles)).tolist())
+          + f"; with the stored next action {v_stored[continues].min():.2f} at the lowest; the trainer's largest |pre-tanh "
+          f"mean| {u:.2f}")
+    print("lowest rows (buffer row: value): " + ", ".join(f"{int(idx[j])}: {v_fresh[j]:.1f}" for j in v_fresh.argsort()[:8]))
 
 
 if __name__ == "__main__":

@@ -534,6 +534,11 @@ def test_absorbing_states_end_to_end(run, tmp_path):
     assert "(the freeze test's statistic), to r_T's variance" in out
     split = out.split("the targets' own variance ")[1]
     assert float(split.split(",")[0]) > 0 and float(split.split("beyond it ")[1].split(" ")[0]) >= 0
+    # the value the critics bootstrap from, over the window: five ordered quantiles, then the eight lowest rows
+    quantiles = [float(x) for x in out.split("1.0): ")[1].split(";")[0].split()]
+    assert len(quantiles) == 5 and quantiles == sorted(quantiles)
+    lowest = [float(x.split(": ")[1]) for x in out.split("lowest rows (buffer row: value): ")[1].strip().split(", ")]
+    assert len(lowest) == 8 and lowest == sorted(lowest) and abs(lowest[0] - quantiles[0]) < 0.05
     run("rile.py", *TINY, "--total-timesteps", "210", "--run-name", "surv", "--termination-remedy", "survival")
     proc = run("benchmarks/rile_rewards.py", "runs/surv", check=False)  # not an absorbing-state run
     assert proc.returncode != 0 and "--termination-remedy survival" in proc.stderr
