@@ -539,6 +539,13 @@ def test_absorbing_states_end_to_end(run, tmp_path):
     assert len(quantiles) == 5 and quantiles == sorted(quantiles)
     lowest = [float(x.split(": ")[1]) for x in out.split("lowest rows (buffer row: value): ")[1].strip().split(", ")]
     assert len(lowest) == 8 and lowest == sorted(lowest) and abs(lowest[0] - quantiles[0]) < 0.05
+    # benchmarks/policy_modes.py replays the saved actor: its mean action on the evaluation's resets scores what the
+    # run's last evaluation did
+    out = run("benchmarks/policy_modes.py", "runs/abs/actor.pt", "--episodes", "2").stdout
+    final = json.loads((tmp_path / "runs/abs/results.json").read_text())["evals"][-1]["mean"]
+    assert abs(float(out.split("mean action: return")[1].split("+-")[0]) - final) < 0.06 and "sampled    : return" in out
+    proc = run("benchmarks/policy_modes.py", "runs/abs/config.json", check=False)
+    assert proc.returncode != 0 and "is not a readable actor.pt" in proc.stderr and "Traceback" not in proc.stderr
     run("rile.py", *TINY, "--total-timesteps", "210", "--run-name", "surv", "--termination-remedy", "survival")
     proc = run("benchmarks/rile_rewards.py", "runs/surv", check=False)  # not an absorbing-state run
     assert proc.returncode != 0 and "--termination-remedy survival" in proc.stderr

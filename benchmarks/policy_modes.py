@@ -1,0 +1,65 @@
+"""A saved policy with its mean action and with sampled actions: returns, episode lengths and falls.
+
+Every script evaluates the mean action; its student was trained, and judged by its discriminator, on sampled ones.
+Where a run's evaluations swing while its training episodes hold, this tells which policy falls and where.
+
+    python benchmarks/policy_modes.py runs/bench__Walker2d-v4__rile-paperD__1/actor.pt --episodes 10
+
+Episode i starts from reset(seed=seed + i); the default seed is the one the scripts' evaluations use for seed 1.
+"""
+
+import argparse
+import os
+import pickle
+import sys
+
+import numpy as np
+import torch
+
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+import rile  # noqa: E402  (the actor and env blocks are the same in every script)
+
+
+def rollouts(actor: rile.Actor, env_id: str, episodes: int, seed: int, deterministic: bool):
+    """(return, length, terminated) of each episode."""
+    env, out = rile.make_env(env_id, seed), []
+    env.action_space.seed(seed)
+    torch.manual_seed(seed)  # the sampled actions' noise
+    for i in range(episodes):
+        obs, _ = env.reset(seed=seed + i)
+        ret, length, terminated, truncated = 0.0, 0, False, False
+        while not (terminated or truncated):
+            obs, reward, terminated, truncated, _ = env.step(actor.act(obs, deterministic=deterministic))
+            ret, length = ret + float(reward), length + 1
+        out.append((ret, length, terminated))
+    env.close()
+    return out
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("actor", help="an actor.pt written by any of the scripts")
+    parser.add_argument("--episodes", type=int, default=10)
+    parser.add_argument("--seed", type=int, default=100_001)
+    cli = parser.parse_args()
+    torch.set_num_threads(1)
+    try:
+        saved = torch.load(cli.actor, map_location="cpu", weights_only=False)
+        env = rile.make_env(saved["env_id"], cli.seed)
+        actor = rile.Actor(saved["obs_dim"], saved["act_dim"], env.action_space.low, env.action_space.high,
+                           saved["hidden_dim"])
+        actor.load_state_dict(saved["actor"])
+    except (OSError, KeyError, RuntimeError, EOFError, pickle.UnpicklingError) as e:
+        sys.exit(f"error: {cli.actor} is not a readable actor.pt ({type(e).__name__}: {e})")
+    print(f"{cli.actor}: {saved['env_id']}, {cli.episodes} episodes from reset seed {cli.seed}")
+    for name, det in (("mean action", True), ("sampled", False)):
+        eps = rollouts(actor, saved["env_id"], cli.episodes, cli.seed, det)
+        rets, lens = np.array([e[0] for e in eps]), np.array([e[1] for e in eps])
+        falls = [int(e[1]) for e in eps if e[2]]
+        print(f"{name:11s}: return {rets.mean():8.1f} +- {rets.std():6.1f} (min {rets.min():.0f}, max {rets.max():.0f}), "
+              f"return per step {rets.sum() / lens.sum():.2f}, {len(falls)} of {len(eps)} terminated"
+              + (f" at steps {sorted(falls)}" if falls else ""))
+
+
+if __name__ == "__main__":
+    main()
