@@ -1,5 +1,5 @@
 """What rile.py's learned reward r_S pays, read from a checkpoint: on the demonstrations, on the student's
-recent replay transitions, and at the absorbing state; then one deterministic episode of the student.
+recent replay transitions, and at the absorbing state (with D there); then one deterministic episode of the student.
 Answers "is falling worth less than living, and is walking worth more than standing?" for a run with
 `--termination-remedy absorbing`: staying in the absorbing state forever is worth r_abs / (1 - gamma).
 Both trainer observations: (s, a_S), and (s, s') of `--state-only --trainer-obs transition`.
@@ -31,6 +31,9 @@ def main():
     trainer.load_state_dict(ckpt["trainer"])
     student = rile.SAC(obs_dim + 1, act_dim, low, high, args, device, absorbing=True)
     student.load_state_dict(ckpt["student"] if "student" in ckpt else ckpt["agent"])  # before issue 29: "agent"
+    disc = rile.Discriminator(obs_dim + 1 + act_dim, args.disc_hidden_dim, args.disc_lr, args.disc_gp, args.disc_gp_center,
+                              None, args.disc_normalize == "pooled")
+    disc.load_state_dict(ckpt["disc"])
     rb = rile.ReplayBuffer(obs_dim + 1, act_dim, args.buffer_size, device, extra_dim=1)
     rb.load_state_dict(ckpt["replay_buffer"])
     demos = rile.load_demonstrations(args.expert_path or os.path.join("experts", f"{args.env_id}.npz"), env,
@@ -71,6 +74,12 @@ def main():
         r_abs = r_s(s_abs, torch.zeros(1, act_dim), s_abs).item()  # the absorbing state loops to itself
     print(f"r_S at the absorbing state:               {r_abs:7.3f}; worth of falling r_abs / (1 - gamma): "
           f"{r_abs * horizon:.1f}, of living at the student's mean: {on_student[living].mean() * horizon:.1f}")
+    if not transition:  # D prices a fall only if it has learned that the demonstrations never reach the absorbing state
+        with torch.no_grad():
+            d_abs = disc.prob(torch.cat([s_abs, torch.zeros(1, act_dim)], -1)).item()
+            d_living = disc.prob(torch.cat([recent.obs[living], recent.actions[living]], -1)).mean().item()
+        print(f"D at the absorbing state:                 {d_abs:7.3f}; on the student's living pairs: mean {d_living:.3f}; "
+              f"absorbing rows: {int((rb.batch(torch.arange(rb.size)).obs[:, -1] > 0).sum())} of the buffer's {rb.size}")
 
     obs, _ = env.reset(seed=args.seed + 100_000)  # the first evaluation episode
     x0, rewards, done, steps = env.unwrapped.data.qpos[0], [], False, 0

@@ -526,6 +526,10 @@ def test_absorbing_states_end_to_end(run, tmp_path):
     trainer.load_state_dict(ckpt["trainer"]["actor"])
     r_abs = trainer.deterministic(torch.tensor([[0.0, 0.0, 0.0, 0.0, 1.0, 0.0]])).item()
     assert f"r_S at the absorbing state:               {r_abs:7.3f};" in out
+    disc = rile.Discriminator(5 + 1, ckpt["config"]["disc_hidden_dim"], 1e-3, 0.0)
+    disc.load_state_dict(ckpt["disc"])
+    d_abs = disc.prob(torch.tensor([[0.0, 0.0, 0.0, 0.0, 1.0, 0.0]])).item()
+    assert f"D at the absorbing state:                 {d_abs:7.3f};" in out and f"absorbing rows: {n_absorbing} of" in out
     # benchmarks/rile_follows_d.py: each of the run's 400 live pairs falls in one v(D) bin
     out = run("benchmarks/rile_follows_d.py", "runs/abs", "--recent", "100000").stdout
     live = ckpt["step"]  # one live row per env step; the absorbing loops are left out
