@@ -31,9 +31,6 @@ def main():
     trainer.load_state_dict(ckpt["trainer"])
     student = rile.SAC(obs_dim + 1, act_dim, low, high, args, device, absorbing=True)
     student.load_state_dict(ckpt["student"] if "student" in ckpt else ckpt["agent"])  # before issue 29: "agent"
-    disc = rile.Discriminator(obs_dim + 1 + act_dim, args.disc_hidden_dim, args.disc_lr, args.disc_gp, args.disc_gp_center,
-                              None, args.disc_normalize == "pooled")
-    disc.load_state_dict(ckpt["disc"])
     rb = rile.ReplayBuffer(obs_dim + 1, act_dim, args.buffer_size, device, extra_dim=1)
     rb.load_state_dict(ckpt["replay_buffer"])
     demos = rile.load_demonstrations(args.expert_path or os.path.join("experts", f"{args.env_id}.npz"), env,
@@ -74,7 +71,10 @@ def main():
         r_abs = r_s(s_abs, torch.zeros(1, act_dim), s_abs).item()  # the absorbing state loops to itself
     print(f"r_S at the absorbing state:               {r_abs:7.3f}; worth of falling r_abs / (1 - gamma): "
           f"{r_abs * horizon:.1f}, of living at the student's mean: {on_student[living].mean() * horizon:.1f}")
-    if not transition:  # D prices a fall only if it has learned that the demonstrations never reach the absorbing state
+    if not args.state_only:  # D prices a fall only if it has learned that the demonstrations never reach the absorbing state
+        disc = rile.Discriminator(obs_dim + 1 + act_dim, args.disc_hidden_dim, args.disc_lr, args.disc_gp,
+                                  args.disc_gp_center, None, args.disc_normalize == "pooled")
+        disc.load_state_dict(ckpt["disc"])
         with torch.no_grad():
             d_abs = disc.prob(torch.cat([s_abs, torch.zeros(1, act_dim)], -1)).item()
             d_living = disc.prob(torch.cat([recent.obs[living], recent.actions[living]], -1)).mean().item()

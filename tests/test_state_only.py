@@ -133,6 +133,7 @@ def test_rile_from_a_file_without_actions_then_covariate_shift(run, tmp_path):
     assert saved["state_only"] and saved["disc"]["net.0.weight"].shape[1] == 2 * 5  # (s, s'), with the indicator
     out = run("benchmarks/rile_rewards.py", "runs/s").stdout  # what r_S pays, without expert actions
     assert "r_S on the demonstrations:               not defined" in out and "r_S of the student's action" in out
+    assert "D at the absorbing state" not in out  # D sees (s, s') here: no (s_abs, 0) pair to ask it about
     out = run("rile.py", *TINY, "--expert-path", states, "--state-only", "--run-name", "cs",
               "--reward-from", "runs/s/reward.pt").stdout
     assert "done: 600 steps" in out
