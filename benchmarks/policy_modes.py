@@ -23,7 +23,6 @@ import rile  # noqa: E402  (the actor and env blocks are the same in every scrip
 def rollouts(actor: rile.Actor, env_id: str, episodes: int, seed: int, deterministic: bool):
     """(return, length, terminated) of each episode."""
     env, out = rile.make_env(env_id, seed), []
-    env.action_space.seed(seed)
     torch.manual_seed(seed)  # the sampled actions' noise
     for i in range(episodes):
         obs, _ = env.reset(seed=seed + i)
