@@ -321,12 +321,16 @@ def rile_update(student: "SAC", trainer: "SAC", disc: nn.Module, rb: "ReplayBuff
     rewards, (2) the discriminator from expert pairs against the student's recent ones (every --disc-update-every
     steps), (3) the trainer from the current discriminator, and the freeze test. `state` (rile_state) holds
     frozen_at, reward_only (covariate shift: only the student learns) and the freeze statistic. `disc`: any
-    discriminator with prob(x) and update(expert_x, policy_x) (gail.py's here, DRAIL's in drail_disc.py)."""
+    discriminator with prob(x) and update(expert_x, policy_x) (gail.py's here, DRAIL's in drail_disc.py). `trainer`
+    None: the control, whose student learns from v(D) itself (1) and which has no step (3)."""
     seen = "next_obs" if args.state_only else "actions"  # what D sees beside s: a_S, or s' with --state-only
-    # (1) student: SAC on r_S = the current trainer's action on o_T = (s, a_S)
+    # (1) student: SAC on r_S = the current trainer's action on o_T = (s, a_S); with no trainer (the control), on v(D)
     batch = mix_expert(rb.sample(args.batch_size), expert, args.student_expert_fraction)
-    obs_trainer = trainer_input(batch.obs, batch.actions, batch.next_obs, args.trainer_obs)
-    r_student = student_reward(trainer.actor, obs_trainer, args.termination_remedy)
+    if trainer is None:
+        r_student = discriminator_reward(disc, torch.cat([batch.obs, getattr(batch, seen)], -1), args.termination_remedy)
+    else:
+        obs_trainer = trainer_input(batch.obs, batch.actions, batch.next_obs, args.trainer_obs)
+        r_student = student_reward(trainer.actor, obs_trainer, args.termination_remedy)
     metrics = student.update(batch.obs, batch.actions, batch.next_obs, r_student, batch.terminations, prefix="losses/student_")
     metrics["reward/learned_mean"] = r_student.mean()
     if state["reward_only"]:
@@ -338,7 +342,7 @@ def rile_update(student: "SAC", trainer: "SAC", disc: nn.Module, rb: "ReplayBuff
         metrics |= disc.update(torch.cat([expert["obs"][idx], expert[seen][idx]], -1),
                                torch.cat([policy.obs, getattr(policy, seen)], -1))
     frozen = state["frozen_at"] is not None
-    if frozen and (step % 10 or args.trainer_release_threshold == float("inf")):
+    if trainer is None or (frozen and (step % 10 or args.trainer_release_threshold == float("inf"))):
         return metrics
     # (3) trainer: SAC on its recent transitions (o_T, a_T as stored, o_T'), r_T from the current discriminator. A frozen
     # trainer is only watched, every 10 steps (its critics' loss, which may release it: freeze_test), with the random
@@ -390,6 +394,13 @@ def student_reward(trainer_actor, obs_trainer, remedy: str):
     with torch.no_grad():
         a_trainer = trainer_actor.deterministic(obs_trainer).squeeze(-1)
     return (1 + a_trainer) / 2 if remedy == "survival" else a_trainer
+
+
+def discriminator_reward(disc: nn.Module, x, remedy: str):
+    """The control's r_S, with no trainer: v(D) = 2D - 1 of the current discriminator on D's inputs x; with remedy
+    'survival', mapped to [0, 1] as the trainer's action is (that is, D)."""
+    v = 2 * disc.prob(x) - 1
+    return (1 + v) / 2 if remedy == "survival" else v
 
 
 def trainer_input(obs, actions, next_obs, trainer_obs: str):

@@ -170,6 +170,9 @@ class Args:
     """episodes per evaluation"""
 
     # Trainer arguments
+    student_reward: Literal["trainer", "discriminator"] = "trainer"
+    """trainer: r_S = a_T, the trainer's action (RILe); discriminator: the control, r_S = v(D) = 2D - 1 of the current
+    discriminator on every batch, no trainer built (header, choice 12)"""
     trainer_reward: Literal["difference", "exp-difference", "multiplication", "naive", "exp-naive",
                             "sigmoid"] = "exp-difference"
     """the trainer's reward (the paper's ablation); v(D) = 2D - 1"""
@@ -338,12 +341,16 @@ def rile_update(student: "SAC", trainer: "SAC", disc: nn.Module, rb: "ReplayBuff
     rewards, (2) the discriminator from expert pairs against the student's recent ones (every --disc-update-every
     steps), (3) the trainer from the current discriminator, and the freeze test. `state` (rile_state) holds
     frozen_at, reward_only (covariate shift: only the student learns) and the freeze statistic. `disc`: any
-    discriminator with prob(x) and update(expert_x, policy_x) (gail.py's here, DRAIL's in drail_disc.py)."""
+    discriminator with prob(x) and update(expert_x, policy_x) (gail.py's here, DRAIL's in drail_disc.py). `trainer`
+    None: the control, whose student learns from v(D) itself (1) and which has no step (3)."""
     seen = "next_obs" if args.state_only else "actions"  # what D sees beside s: a_S, or s' with --state-only
-    # (1) student: SAC on r_S = the current trainer's action on o_T = (s, a_S)
+    # (1) student: SAC on r_S = the current trainer's action on o_T = (s, a_S); with no trainer (the control), on v(D)
     batch = mix_expert(rb.sample(args.batch_size), expert, args.student_expert_fraction)
-    obs_trainer = trainer_input(batch.obs, batch.actions, batch.next_obs, args.trainer_obs)
-    r_student = student_reward(trainer.actor, obs_trainer, args.termination_remedy)
+    if trainer is None:
+        r_student = discriminator_reward(disc, torch.cat([batch.obs, getattr(batch, seen)], -1), args.termination_remedy)
+    else:
+        obs_trainer = trainer_input(batch.obs, batch.actions, batch.next_obs, args.trainer_obs)
+        r_student = student_reward(trainer.actor, obs_trainer, args.termination_remedy)
     metrics = student.update(batch.obs, batch.actions, batch.next_obs, r_student, batch.terminations, prefix="losses/student_")
     metrics["reward/learned_mean"] = r_student.mean()
     if state["reward_only"]:
@@ -355,7 +362,7 @@ def rile_update(student: "SAC", trainer: "SAC", disc: nn.Module, rb: "ReplayBuff
         metrics |= disc.update(torch.cat([expert["obs"][idx], expert[seen][idx]], -1),
                                torch.cat([policy.obs, getattr(policy, seen)], -1))
     frozen = state["frozen_at"] is not None
-    if frozen and (step % 10 or args.trainer_release_threshold == float("inf")):
+    if trainer is None or (frozen and (step % 10 or args.trainer_release_threshold == float("inf"))):
         return metrics
     # (3) trainer: SAC on its recent transitions (o_T, a_T as stored, o_T'), r_T from the current discriminator. A frozen
     # trainer is only watched, every 10 steps (its critics' loss, which may release it: freeze_test), with the random
@@ -407,6 +414,13 @@ def student_reward(trainer_actor, obs_trainer, remedy: str):
     with torch.no_grad():
         a_trainer = trainer_actor.deterministic(obs_trainer).squeeze(-1)
     return (1 + a_trainer) / 2 if remedy == "survival" else a_trainer
+
+
+def discriminator_reward(disc: nn.Module, x, remedy: str):
+    """The control's r_S, with no trainer: v(D) = 2D - 1 of the current discriminator on D's inputs x; with remedy
+    'survival', mapped to [0, 1] as the trainer's action is (that is, D)."""
+    v = 2 * disc.prob(x) - 1
+    return (1 + v) / 2 if remedy == "survival" else v
 
 
 def trainer_input(obs, actions, next_obs, trainer_obs: str):
@@ -575,8 +589,11 @@ def rile_measures(trainer: "SAC", disc: "Discriminator", rb: "ReplayBuffer", exp
     """reward_measures for RILe's r_S (the trainer's action; r_s_follows_d: whether the trainer passes D on), with the
     freeze test's statistics, every --dynamics-freq steps."""
     seen = "next_obs" if args.state_only else "actions"
+    d_input = lambda data: torch.cat([data["obs"], data[seen]], -1)
 
     def r_student(data):  # o_T needs the student's action, which the demonstrations lack with --state-only
+        if trainer is None:  # the control: v(D)
+            return discriminator_reward(disc, d_input(data), args.termination_remedy)
         if "actions" not in data and args.trainer_obs != "transition":
             return None
         o_t = trainer_input(data["obs"], data.get("actions"), data["next_obs"], args.trainer_obs)
@@ -586,31 +603,35 @@ def rile_measures(trainer: "SAC", disc: "Discriminator", rb: "ReplayBuffer", exp
              "critic_loss_relative": freeze_statistic(state, "relative") if learning else None,
              "critic_loss_to_reward": freeze_statistic(state, "reward") if learning else None,
              "critic_excess_to_reward": x if learning and (x := freeze_statistic(state, "excess")) < float("inf") else None}
-    return reward_measures(r_student, lambda data: disc.prob(torch.cat([data["obs"], data[seen]], -1)), rb, expert,
+    return reward_measures(r_student, lambda data: disc.prob(d_input(data)), rb, expert,
                            args.termination_remedy == "absorbing", measures, step, min(args.dynamics_freq, rb.size), extra)
 
 
-def reward_file(trainer: "SAC", disc: "Discriminator", args, obs_dim: int, act_dim: int) -> dict:
-    """What reward.pt holds: the learned reward (the trainer's actor gives r_S) and the discriminator."""
-    return {"trainer_actor": trainer.actor.state_dict(), "disc": disc.state_dict(), "env_id": args.env_id,
+def reward_file(trainer: Optional["SAC"], disc: "Discriminator", args, obs_dim: int, act_dim: int) -> dict:
+    """What reward.pt holds: the learned reward (the trainer's actor gives r_S; the control's, None: D does) and the
+    discriminator."""
+    return {"trainer_actor": trainer and trainer.actor.state_dict(), "disc": disc.state_dict(), "env_id": args.env_id,
             "obs_dim": obs_dim, "act_dim": act_dim, "trainer_hidden_dim": args.trainer_hidden_dim,
             "disc_hidden_dim": args.disc_hidden_dim, "termination_remedy": args.termination_remedy,
-            "state_only": args.state_only, "trainer_obs": args.trainer_obs}
+            "state_only": args.state_only, "trainer_obs": args.trainer_obs, "student_reward": args.student_reward}
 
 
-def load_reward(path: str, trainer: "SAC", disc: "Discriminator", args, obs_dim: int, act_dim: int) -> dict:
-    """A saved reward.pt (the trainer's actor and the discriminator) into `trainer` and `disc`, with clear errors."""
+def load_reward(path: str, trainer: Optional["SAC"], disc: "Discriminator", args, obs_dim: int, act_dim: int) -> dict:
+    """A saved reward.pt (the trainer's actor, none for the control, and the discriminator) into `trainer` and `disc`,
+    with clear errors."""
     if not os.path.isfile(path):
         raise SystemExit(f"error: no saved reward at '{path}'; a finished rile.py run writes runs/<run>/reward.pt")
     saved = torch.load(path, map_location="cpu", weights_only=True)
     if (saved["env_id"], saved["obs_dim"], saved["act_dim"]) != (args.env_id, obs_dim, act_dim):
         raise SystemExit(f"error: reward '{path}' was learned on {saved['env_id']}, not {args.env_id}")
-    for name in ("termination_remedy", "state_only", "trainer_obs"):
+    saved.setdefault("student_reward", "trainer")  # files from before the control
+    for name in ("termination_remedy", "state_only", "trainer_obs", "student_reward"):
         if saved[name] != getattr(args, name):
             flag = f"--{name.replace('_', '-')}"
             raise SystemExit(f"error: reward '{path}' was learned with {flag} {saved[name]}; "
                              "pass the same to train against it")
-    trainer.actor.load_state_dict(saved["trainer_actor"])
+    if trainer is not None:
+        trainer.actor.load_state_dict(saved["trainer_actor"])
     disc.load_state_dict(saved["disc"])
     return saved
 
@@ -1174,19 +1195,19 @@ if __name__ == "__main__":
     # ALGO LOGIC: the student, the trainer, the discriminator and one buffer (a_T in its extra column)
     aug_dim = obs_dim + absorbing  # with absorbing states, every stored observation has the indicator column
     student = SAC(aug_dim, act_dim, low, high, args, device, absorbing=absorbing)
-    trainer = make_trainer(aug_dim, act_dim, args, device)
+    trainer = make_trainer(aug_dim, act_dim, args, device) if args.student_reward == "trainer" else None  # None: the control
     seen = "next_obs" if args.state_only else "actions"  # what D sees beside s
     stats = input_stats(torch.cat([expert["obs"], expert[seen]], -1)) if args.disc_normalize == "demos" else None
     disc = Discriminator(aug_dim + (aug_dim if args.state_only else act_dim), args.disc_hidden_dim, args.disc_lr,
                          args.disc_gp, args.disc_gp_center, stats, args.disc_normalize == "pooled").to(device)
-    rb = ReplayBuffer(aug_dim, act_dim, args.buffer_size, device, extra_dim=1)
+    rb = ReplayBuffer(aug_dim, act_dim, args.buffer_size, device, extra_dim=int(trainer is not None))
     state = rile_state(device) | {"reward_only": bool(args.reward_from)}
     if args.reward_from:  # covariate shift: a frozen learned reward, only the student learns
         load_reward(args.reward_from, trainer, disc, args, obs_dim, act_dim)
         state["frozen_at"] = 0
     measures = {"interval": None, "demos": None, "history": []}  # reward_measures' memory
-    stateful = {"student": student, "trainer": trainer, "disc": disc, "disc_optimizer": disc.optimizer,
-                "replay_buffer": rb, "rile": state, "measures": measures}
+    stateful = {"student": student, "disc": disc, "disc_optimizer": disc.optimizer, "replay_buffer": rb, "rile": state,
+                "measures": measures} | ({"trainer": trainer} if trainer is not None else {})
     run = Run(args, checkpoint, stateful, float(demos["episode_returns"].mean()), device,
               checkpoint_freq=args.checkpoint_freq, random_return=demos["metadata"]["random_return"])
     run.extra = {"trainer_frozen_at": state["frozen_at"], "trainer_released_at": state["released_at"],
@@ -1203,7 +1224,10 @@ if __name__ == "__main__":
         if args.student_action_noise > 0:
             executed = np.clip(action + np.random.normal(0, args.student_action_noise, act_dim), low, high).astype(np.float32)
         next_obs, reward, terminated, truncated, info = env.step(executed)
-        a_trainer, a_trainer_absorbing = trainer_acts(trainer, obs, action, next_obs, terminated, absorbing, args.trainer_obs)
+        a_trainer, a_trainer_absorbing = (), ()  # the control: no trainer acts
+        if trainer is not None:
+            a_trainer, a_trainer_absorbing = trainer_acts(trainer, obs, action, next_obs, terminated, absorbing,
+                                                          args.trainer_obs)
         store(rb, obs, action, next_obs, reward, terminated, absorbing, a_trainer, a_trainer_absorbing)  # env reward: CPR only
         obs = next_obs
         if terminated or truncated:

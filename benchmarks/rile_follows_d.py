@@ -26,6 +26,9 @@ def main():
     cli, args, ckpt = open_run(rile, __doc__)
     if args.termination_remedy != "absorbing" or args.state_only:
         sys.exit(f"error: {cli.run_dir} is not a run with --termination-remedy absorbing on (s, a) pairs")
+    if args.student_reward != "trainer":
+        sys.exit(f"error: {cli.run_dir} is a run of the control (--student-reward discriminator): it has no trainer, "
+                 "its r_S is v(D) itself")
     env = rile.make_env(args.env_id, args.seed)
     obs_dim, act_dim, device = env.observation_space.shape[0], env.action_space.shape[0], torch.device("cpu")
     trainer = rile.make_trainer(obs_dim + 1, act_dim, args, device)

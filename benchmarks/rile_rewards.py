@@ -1,5 +1,6 @@
 """What rile.py's learned reward r_S pays, read from a checkpoint: on the demonstrations, on the student's
 recent replay transitions, and at the absorbing state (with D there); then one deterministic episode of the student.
+For a run of the control (`--student-reward discriminator`), r_S is v(D) = 2D - 1.
 Answers "is falling worth less than living, and is walking worth more than standing?" for a run with
 `--termination-remedy absorbing`: staying in the absorbing state forever is worth r_abs / (1 - gamma).
 Both trainer observations: (s, a_S), and (s, s') of `--state-only --trainer-obs transition`.
@@ -27,17 +28,26 @@ def main():
     env = rile.make_env(args.env_id, args.seed)
     obs_dim, act_dim = env.observation_space.shape[0], env.action_space.shape[0]
     low, high, device = env.action_space.low, env.action_space.high, torch.device("cpu")
-    trainer = rile.make_trainer(obs_dim + 1, act_dim, args, device)
-    trainer.load_state_dict(ckpt["trainer"])
+    control = args.student_reward == "discriminator"  # no trainer: r_S = v(D)
+    trainer = None if control else rile.make_trainer(obs_dim + 1, act_dim, args, device)
+    if trainer is not None:
+        trainer.load_state_dict(ckpt["trainer"])
+    seen_dim = obs_dim + 1 if args.state_only else act_dim
+    disc = rile.Discriminator(obs_dim + 1 + seen_dim, args.disc_hidden_dim, args.disc_lr, args.disc_gp, args.disc_gp_center,
+                              None, args.disc_normalize == "pooled")
+    disc.load_state_dict(ckpt["disc"])
     student = rile.SAC(obs_dim + 1, act_dim, low, high, args, device, absorbing=True)
     student.load_state_dict(ckpt["student"] if "student" in ckpt else ckpt["agent"])  # before issue 29: "agent"
-    rb = rile.ReplayBuffer(obs_dim + 1, act_dim, args.buffer_size, device, extra_dim=1)
+    rb = rile.ReplayBuffer(obs_dim + 1, act_dim, args.buffer_size, device, extra_dim=int(not control))
     rb.load_state_dict(ckpt["replay_buffer"])
     demos = rile.load_demonstrations(args.expert_path or os.path.join("experts", f"{args.env_id}.npz"), env,
                                      args.num_expert_trajs, args.state_only)
     expert = rile.absorbing_expert(rile.expert_tensors(demos, args.seed, device, args.expert_state_noise,
                                                      args.expert_action_noise, low, high))
     def r_s(obs, actions, next_obs):
+        if control:
+            return rile.discriminator_reward(disc, torch.cat([obs, next_obs if args.state_only else actions], -1),
+                                             args.termination_remedy)
         return rile.student_reward(trainer.actor, rile.trainer_input(obs, actions, next_obs, args.trainer_obs),
                                    args.termination_remedy)
 
@@ -52,8 +62,9 @@ def main():
     living = ~at_abs & ~into_abs
     horizon = 1 / (1 - args.gamma)
     frozen = ckpt["rile"]["frozen_at"]
-    print(f"{cli.run_dir} at step {ckpt['step']}, gamma {args.gamma}, trainer "
-          f"{'frozen at step ' + str(frozen) if frozen is not None else 'learning'}")
+    trainer_is = "frozen at step " + str(frozen) if frozen is not None else "learning"
+    print(f"{cli.run_dir} at step {ckpt['step']}, gamma {args.gamma}, "
+          f"{'no trainer (the control: r_S = v(D))' if control else 'trainer ' + trainer_is}")
     if on_expert is not None:
         print(f"r_S on the demonstrations:               mean {on_expert.mean():7.3f}  std {on_expert.std():6.3f}")
     else:
@@ -72,9 +83,6 @@ def main():
     print(f"r_S at the absorbing state:               {r_abs:7.3f}; worth of falling r_abs / (1 - gamma): "
           f"{r_abs * horizon:.1f}, of living at the student's mean: {on_student[living].mean() * horizon:.1f}")
     if not args.state_only:  # D prices a fall only if it has learned that the demonstrations never reach the absorbing state
-        disc = rile.Discriminator(obs_dim + 1 + act_dim, args.disc_hidden_dim, args.disc_lr, args.disc_gp,
-                                  args.disc_gp_center, None, args.disc_normalize == "pooled")
-        disc.load_state_dict(ckpt["disc"])
         with torch.no_grad():
             d_abs = disc.prob(torch.cat([s_abs, torch.zeros(1, act_dim)], -1)).item()
             d_living = disc.prob(torch.cat([recent.obs[living], recent.actions[living]], -1)).mean().item()

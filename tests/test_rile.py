@@ -2,6 +2,7 @@
 fractions, noise, the reward-dynamics metrics, the discriminator loss, the saved reward, end to end."""
 
 import json
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -95,6 +96,32 @@ def test_update_relabels_the_student_batch_with_the_current_trainer(monkeypatch)
     for rewards, expected in seen:
         assert torch.allclose(rewards, expected)
     assert not torch.allclose(seen[0][1], seen[1][1])
+
+
+def test_the_control_rewards_the_student_with_v_of_d_and_has_no_trainer(monkeypatch):
+    """--student-reward discriminator: r_S = 2D - 1 of D as it is when the student learns (D then takes its step), no
+    trainer step; with --termination-remedy survival, (1 + v(D)) / 2 = D."""
+    for remedy, of_d in (("none", lambda d: 2 * d - 1), ("survival", lambda d: d)):
+        args = tiny_args(termination_remedy=remedy, student_reward="discriminator")
+        student, _, disc, rb, expert, state = learners(args)
+        seen = []
+
+        def capture(obs, actions, next_obs, rewards, terminations, prefix):
+            seen.append((rewards, of_d(torch.sigmoid(disc(torch.cat([obs, actions], -1))))))
+            return {}
+
+        monkeypatch.setattr(student, "update", capture)
+        before = params(disc)
+        out = rile.rile_update(student, None, disc, rb, expert, args, state, 1)
+        assert changed(before, disc)  # D learns as in RILe
+        rile.rile_update(student, None, disc, rb, expert, args, state, 1)  # and the reward follows it
+        for rewards, expected in seen:
+            assert torch.allclose(rewards, expected)
+        assert not torch.allclose(seen[0][1], seen[1][1]) and len(seen[0][0]) == args.batch_size
+        assert state["trainer_updates"] == 0 and not any(key.startswith(("losses/trainer_", "reward/trainer")) for key in out)
+    d = SimpleNamespace(prob=lambda x: x)  # a D whose output is its input
+    assert rile.discriminator_reward(d, torch.tensor([0.0, 0.25, 1.0]), "none").tolist() == [-1.0, -0.5, 1.0]
+    assert rile.discriminator_reward(d, torch.tensor([0.0, 0.25, 1.0]), "survival").tolist() == [0.0, 0.25, 1.0]
 
 
 def test_trainer_transition_layout(monkeypatch):
@@ -483,6 +510,33 @@ def test_end_to_end_every_update_path_then_covariate_shift(run, tmp_path):
     assert "done: 400 steps" in out
     shifted = torch.load(tmp_path / "runs/cs/checkpoint.pt", weights_only=False)
     assert shifted["rile"]["trainer_updates"] == 0 and not shifted["disc_optimizer"]["state"]
+
+
+def test_the_control_end_to_end_without_a_trainer_then_covariate_shift(run, tmp_path):
+    out = run("rile.py", *TINY, "--total-timesteps", "400", "--run-name", "ctl", "--student-reward", "discriminator").stdout
+    assert "done: 400 steps" in out
+    ckpt = torch.load(tmp_path / "runs/ctl/checkpoint.pt", weights_only=False)
+    assert "trainer" not in ckpt and ckpt["rile"]["trainer_updates"] == 0 and ckpt["disc_optimizer"]["state"]
+    # buffer rows: obs and next obs with the absorbing indicator (4 + 1 each), the action, reward, termination; no a_T
+    assert ckpt["replay_buffer"]["storage"].shape[1] == 2 * 5 + 1 + 2
+    saved = torch.load(tmp_path / "runs/ctl/reward.pt", weights_only=True)
+    assert saved["trainer_actor"] is None and saved["student_reward"] == "discriminator"
+    results = json.loads((tmp_path / "runs/ctl/results.json").read_text())
+    measured = results["reward_measures"][-1]  # the same measures, of v(D)
+    assert measured["r_s_follows_d"] == pytest.approx(1.0, abs=1e-5) and results["trainer_frozen_at"] is None
+    assert measured["r_s_demos"] == pytest.approx(2 * measured["d_demos"] - 1, abs=1e-5)
+    assert measured["critic_loss"] is None and np.isfinite(measured["r_s_absorbing"])
+    out = run("benchmarks/rile_rewards.py", "runs/ctl").stdout  # what v(D) pays, the absorbing state included
+    r_abs, d_abs = (float(out.split(f"{name} at the absorbing state:")[1].split(";")[0]) for name in ("r_S", "D"))
+    assert "no trainer (the control" in out and r_abs == pytest.approx(2 * d_abs - 1, abs=2e-3)
+    proc = run("benchmarks/rile_follows_d.py", "runs/ctl", check=False)
+    assert proc.returncode != 0 and "run of the control" in proc.stderr and "Traceback" not in proc.stderr
+    out = run("rile.py", *TINY, "--total-timesteps", "300", "--run-name", "ctl-cs", "--reward-from", "runs/ctl/reward.pt",
+              "--student-reward", "discriminator").stdout  # covariate shift: a fresh student against the control's D
+    assert "done: 300 steps" in out
+    assert not torch.load(tmp_path / "runs/ctl-cs/checkpoint.pt", weights_only=False)["disc_optimizer"]["state"]
+    proc = run("rile.py", *TINY, "--total-timesteps", "300", "--reward-from", "runs/ctl/reward.pt", check=False)
+    assert proc.returncode != 0 and "learned with --student-reward discriminator" in proc.stderr
 
 
 def test_demonstrations_of_another_env_are_refused(run):
