@@ -557,6 +557,20 @@ def test_resume_continues_the_run(run, tmp_path):
     assert ckpt["step"] == 600 and ckpt["replay_buffer"]["size"] == 600 and ckpt["rile"]["trainer_updates"] == 400
 
 
+def test_a_resume_that_extends_the_run_keeps_its_freeze(run, tmp_path):
+    """Frozen at 300 of 400 steps (3/4 of the run); extended to 800, whose 3/4 is 600, the trainer stays frozen at 300
+    (the freeze is in the checkpoint), and the test does not freeze it anew."""
+    freeze = ["--trainer-freeze-min-updates", "50", "--trainer-freeze-threshold", "1e9", "--trainer-freeze-window", "0",
+              "--trainer-release-threshold", "inf", "--termination-remedy", "survival"]
+    out = run("rile.py", *TINY, *freeze, "--total-timesteps", "400", "--run-name", "fr").stdout
+    assert "trainer frozen at step 300" in out
+    out = run("rile.py", *TINY, "--resume", "runs/fr", "--total-timesteps", "800").stdout
+    assert "resumed runs/fr at step 400" in out and "trainer frozen" not in out
+    results = json.loads((tmp_path / "runs/fr/results.json").read_text())
+    assert results["finished"] and results["trainer_frozen_at"] == 300 and results["config"]["total_timesteps"] == 800
+    assert torch.load(tmp_path / "runs/fr/checkpoint.pt", weights_only=False)["rile"]["trainer_updates"] == 101
+
+
 def test_absorbing_states_end_to_end(run, tmp_path):
     """InvertedPendulum terminates often under random actions: every termination adds one absorbing row,
     nothing stays terminal, and a reward learned this way is refused for a student without them."""
