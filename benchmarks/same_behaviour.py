@@ -26,6 +26,7 @@ VARIANTS = {
     "rile": ["rile.py", *OFF_POLICY, "--trainer-freeze-min-updates", "1000", "--dynamics-freq", "1000"],
     "rile-survival": ["rile.py", *OFF_POLICY, "--termination-remedy", "survival", "--student-expert-fraction", "0.25",
                       "--trainer-expert-fraction", "0.25"],
+    "rile-control": ["rile.py", *OFF_POLICY, "--student-reward", "discriminator", "--dynamics-freq", "1000"],
     "airl": ["airl.py", *OFF_POLICY],
     "gaifo": ["gaifo.py", *OFF_POLICY],
     "iqlearn": ["iqlearn.py", *OFF_POLICY],
