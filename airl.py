@@ -6,73 +6,41 @@ https://arxiv.org/abs/1710.11248 (on TRPO; here on the shared SAC block).
 The discriminator is D(s, a, s') = exp f / (exp f + pi(a|s)) with f(s, a, s') = g(s, a) + gamma h(s') - h(s):
 g is the reward to recover, h a shaping potential. Its logit is f - log pi(a|s) under the current policy.
 Trained like GAIL's (expert = 1), it makes g a reward that transfers. `diff gail.py airl.py` shows what
-AIRL changes about GAIL. On SAC the paper's D and reward did not learn Hopper-v4 (0.30 x expert at 200k
-with absorbing states and the anchor of 7); the defaults of 1, 3 and 6 are what learned it (README).
+AIRL changes about GAIL. On SAC the paper's D and reward did not learn Hopper-v4; the defaults of choices
+1, 3 and 6 (a non-negative reward, a D that does not see the policy, terminations terminal) did.
 
 Implementation choices and deviations
-1. The SAC reward (`--reward`), recomputed with the current networks for every sampled batch:
-   softplus = -log(1 - D), GAIL's non-negative reward on AIRL's D (default; toshikwa's gail-airl-ppo and
-   CAIL pay AIRL's learner this way); f(s, a, s'), the paper's (AIRL's policy objective is f - log pi, and
-   SAC's own entropy term supplies the -alpha log pi part: exact at alpha = 1, the standard approximation
-   at 0.2); or the unshaped g. f and g are signed: with terminations terminal the Hopper-v4 learner fell
-   on purpose, and with absorbing states it stood still (README). softplus pays every step alive.
-2. h(s') is masked by (1 - terminated): a true termination has no future potential; a time-limit
-   truncation keeps it (its next state is real). gamma in f is SAC's gamma.
-3. log pi(a|s) in the logit (`--disc-policy-mix m`) is that of (1 - m) pi + m Uniform(action box). The
-   default m = 1 is the uniform alone, a constant, so D = sigmoid(f + b - const) does not see the policy.
-   m = 0 is the paper's D: log pi of the current actor, detached, expert actions clamped inside the box
-   first (Actor.log_prob) so it never diverges. With m = 0 on Hopper-v4 the alpha-0.2 policy gave the
-   expert's actions log pi of median -64 against the learner's -3.8: D told them apart by log pi alone
-   and f learned little from the expert's side (README, issue 16).
-4. g and h are 64-64 tanh MLPs (the paper's discriminator size), one Adam (lr 3e-5), 32 + 32 samples
-   per update on the most recent 16,384 transitions, and the one-centred gradient penalty (weight 1)
-   of gail.py on f over random interpolates of expert and learner (s, a, s'). `--state-only` makes g a
-   function of s alone (the paper's transfer variant).
+1. `--reward`, recomputed with the current networks for every batch: softplus = -log(1 - D) (default: GAIL's reward
+   on AIRL's D, as gail-airl-ppo and CAIL pay it), f (the paper's; SAC's entropy term supplies its -log pi) or g.
+2. h(s') is masked by (1 - terminated): a true termination has no future potential; a time-limit truncation keeps it.
+3. `--disc-policy-mix m`: log pi in the logit is that of (1 - m) pi + m Uniform(action box). Default 1, a constant:
+   D does not see the policy; 0 is the paper's D (current actor, detached, expert actions clamped inside the box).
+4. g and h: 64-64 tanh MLPs, one Adam (lr 3e-5), 32 + 32 samples from the newest 16,384 transitions, gail.py's
+   one-centred gradient penalty (weight 1) on f; `--state-only`: g of s alone (the paper's transfer variant).
 5. The learned reward g is saved to runs/<run>/reward.pt for reuse.
-6. `--termination-remedy none` (default): a termination ends bootstrapping; under the non-negative
-   softplus reward, ending an episode forfeits every later reward, so falling never pays. With the
-   signed f or g use `absorbing` (DAC, as in gail.py): terminations lead to an absorbing state that
-   loops to itself, for learner and expert alike; nothing is terminal any more; log pi at the absorbing
-   state is 0 (its only action is zero).
-7. The anchor at the absorbing state, with `absorbing` (`--absorbing-anchor min`, default; `learned` is
-   DAC's learned absorbing reward). Falling at s and staying absorbed is worth g(s, a) - h(s) +
-   gamma g_abs / (1 - gamma), living sum_t gamma^t g_t - h(s): h telescopes, so only g_abs against the
-   learner's g decides whether falling pays. Demonstrations that never end never reach the absorbing
-   state, so AIRL does not identify g_abs there (g = r + const holds on the expert's support only); the
-   discriminator pushes it down only until D(s_abs) is near 0, and on Hopper-v4 it stopped level with
-   the learner's living f (README). `min` fixes what the data leave open: (a) h(s_abs) = 0, the
-   potential of a terminal state in Ng et al.'s shaping theorem, in the discriminator and the reward
-   alike; (b) the SAC reward at the absorbing state is the lowest g of the batch's living transitions
-   (detached; with softplus, the lowest reward), the largest value at which ending an episode never
-   beats any step the learner takes. Use `learned` where the demonstrations themselves end in
-   terminations (goal-reaching tasks).
-8. The logit has a free level: f + b - log pi(a|s), b one scalar with its own learning rate
-   (`--disc-level-lr`, 1e-2; 0 removes it). The logit compares f with a log-density, whose level is
-   set by the policy, not the task: the BCE's balance puts f near the mean of log pi on the expert's
-   and the learner's actions, tens of nats below zero on Hopper-v4 (m = 0). Without b, g and h reached
-   that level (f = -32 everywhere at 20k steps, -50 by 50k in the 200k run) only by saturating their tanh
-   units, after which f's spread over states was 0.15 (20k steps) and SAC had almost nothing to learn
-   from. b takes the level at once, so g and h keep the shape of the reward. f and g never include b
-   (a constant changes no optimal policy on episodes that do not end, and the anchor of 7 compares g
-   with g); softplus is D's own -log(1 - D), b included.
+6. `--termination-remedy none` (default): terminations end bootstrapping, which softplus >= 0 makes unprofitable;
+   with the signed f or g use `absorbing` (DAC's self-looping absorbing state, learner and expert alike).
+7. With `absorbing`, `--absorbing-anchor min` (default): h(s_abs) = 0 and the reward at s_abs is the batch's lowest
+   living g, so falling never pays; `learned` (DAC's) where the demonstrations themselves end in terminations.
+8. The logit is f + b - log pi with a free level b (`--disc-level-lr`, 1e-2; 0 removes it), so that g and h need
+   not saturate to reach the level log pi sets; f and g never include b, softplus (D's own -log(1 - D)) does.
 
-Logged metrics: charts/episodic_return, charts/SPS, eval/return, eval/normalized_return,
-losses/{qf_loss,qf_values,actor_loss,alpha_loss,alpha,entropy}, losses/disc_loss, losses/disc_gp,
-disc/expert_prob, disc/policy_prob, disc/level (b), reward/learned_mean, reward/learned_std. Every --dynamics-freq
-steps, in TensorBoard (dynamics/<name>), dynamics.json and results.json ("reward_measures"), the paper's measures of
-the learned reward, named as rile.py names them (r_S: the SAC's reward, --reward; D = sigmoid(f + b - log pi)):
-r_s_demos, r_s_student, r_s_spread, r_s_absorbing, d_demos, d_student, r_s_follows_d, rfdc, fs_rfdc, cpr
-(`reward_measures`).
+Logged metrics: charts/{episodic_return,episodic_length,SPS}, eval/{return,normalized_return}, losses/{qf_loss,
+qf_values,qf_target_var,actor_loss,alpha_loss,alpha,entropy,disc_loss,disc_gp}, disc/{expert,policy}_prob, disc/level,
+reward/learned_{mean,std}, dynamics/* (rile.py's reward measures, every --dynamics-freq). Details: docs/baselines.md
 """
 
 import json
 import os
 import platform
 import random
+import shutil
 import signal
+import subprocess
 import sys
 import time
 from dataclasses import asdict, dataclass, fields, replace
+from importlib import metadata
 from typing import Literal, NamedTuple, Optional
 
 import gymnasium as gym
@@ -144,9 +112,8 @@ class Args:
     state_only: bool = False
     """g depends on the state only (the paper's variant for transfer)"""
     termination_remedy: Literal["none", "absorbing"] = "none"
-    """none: a termination ends bootstrapping (default; the softplus reward >= 0 pays to survive, but a
-    negative f or g pays the agent to fall: on Hopper-v4 it did, see README); absorbing: DAC's absorbing
-    states for agent and expert data"""
+    """none: a termination ends bootstrapping (softplus >= 0 then pays to survive, a signed f or g can pay the agent
+    to fall); absorbing: DAC's absorbing states for agent and expert data"""
     absorbing_anchor: Literal["min", "learned"] = "min"
     """with absorbing states: min (h(s_abs) = 0 and the reward at s_abs is the batch's lowest living g,
     so falling never pays) or learned (the discriminator's own f at s_abs, DAC's treatment)"""
@@ -169,9 +136,8 @@ class Args:
     disc_level_lr: float = 1e-2
     """learning rate of the logit's free level b (logit f + b - log pi; never paid to SAC); 0: no b"""
     disc_policy_mix: float = 1.0
-    """log pi in the logit is that of (1 - mix) pi + mix Uniform(action box): 1 (default), the uniform's
-    constant alone (D = sigmoid(f + b - const) does not see the policy); 0, the paper's D with the
-    policy's own log pi; in between, bounded below by log(mix / box volume)"""
+    """log pi in the logit is that of (1 - mix) pi + mix Uniform(action box): 1, a constant (D does not see the
+    policy); 0, the paper's D with the policy's own log pi; in between, bounded below by log(mix / box volume)"""
 
     # Imitation arguments
     expert_path: Optional[str] = None
@@ -183,8 +149,7 @@ class Args:
     expert_state_noise: float = 0.0
     """std of Gaussian noise added to the expert's states (noise-robustness experiment)"""
     dynamics_freq: int = 10_000
-    """measure the learned reward every this many steps: r_S and D on demonstrations and student, RFDC, FS-RFDC, CPR
-    (0 disables)"""
+    """measure the learned reward every this many steps (r_S, D, RFDC, FS-RFDC, CPR; header); 0 disables"""
 
 
 # ALGO LOGIC: AIRL's discriminator f(s, a, s') = g(s, a) + gamma h(s') - h(s), then AIRL's update
@@ -238,7 +203,8 @@ class AIRLDiscriminator(nn.Module):
         grads = torch.autograd.grad(self(*mixed, terminations).sum(), mixed, create_graph=True, allow_unused=True)
         grads = [torch.zeros_like(x) if g is None else g for g, x in zip(grads, mixed)]  # state-only g: no action input
         gp = (torch.cat(grads, -1).norm(2, dim=1) - 1).pow(2).mean()
-        return bce + self.gp_weight * gp, bce, gp, torch.sigmoid(expert_logits).mean(), torch.sigmoid(policy_logits).mean()
+        expert_prob, policy_prob = torch.sigmoid(expert_logits).mean(), torch.sigmoid(policy_logits).mean()
+        return bce + self.gp_weight * gp, bce, gp, expert_prob, policy_prob
 
     def update(self, expert, policy, expert_log_pi, policy_log_pi) -> dict:
         loss, bce, gp, expert_prob, policy_prob = self.loss(expert, policy, expert_log_pi, policy_log_pi)
@@ -289,7 +255,8 @@ def airl_update(agent: "SAC", disc: AIRLDiscriminator, rb: "ReplayBuffer", exper
     batch = rb.sample(args.batch_size)  # its env rewards are never used
     anchor = agent.absorbing and args.absorbing_anchor == "min"
     with torch.no_grad():  # softplus: D's own log pi of the batch's actions
-        log_pi = policy_log_prob(agent, batch.obs, batch.actions, args.disc_policy_mix) if args.reward == "softplus" else None
+        log_pi = policy_log_prob(agent, batch.obs, batch.actions,
+                                 args.disc_policy_mix) if args.reward == "softplus" else None
     rewards = sac_reward(disc, batch, args.reward, anchor, log_pi)
     metrics = agent.update(batch.obs, batch.actions, batch.next_obs, rewards, batch.terminations, prefix="losses/")
     metrics.update({"reward/learned_mean": rewards.mean(), "reward/learned_std": rewards.std()})
@@ -330,7 +297,8 @@ def reward_measures(reward, disc_prob, rb: "ReplayBuffer", expert: dict, absorbi
            "r_s_follows_d": None if np.isnan(follows) else follows, "r_s_absorbing": None, **(extra or {}),
            "rfdc": float(np.abs(np.sort(r_student) - np.sort(last_student)).mean())
            if last_student is not None and len(last_student) == n else None,
-           "fs_rfdc": float(np.abs(r_demos - last_demos).mean()) if last_demos is not None and r_demos is not None else None,
+           "fs_rfdc": float(np.abs(r_demos - last_demos).mean())
+           if last_demos is not None and r_demos is not None else None,
            "cpr": None if np.isnan(cpr) else cpr}
     if out["r_s_demos"] is not None:
         out["r_s_spread"] = out["r_s_demos"] - out["r_s_student"]
@@ -392,16 +360,13 @@ def make_env(env_id: str, seed: int, render_mode: Optional[str] = None) -> gym.E
 
 
 def seed_everything(seed: int, torch_deterministic: bool = True) -> None:
-    random.seed(seed)
-    np.random.seed(seed)
-    torch.manual_seed(seed)
+    random.seed(seed), np.random.seed(seed), torch.manual_seed(seed)
     torch.backends.cudnn.deterministic = torch_deterministic
 # --- end shared: env ---
 
 
 # --- shared: actor ---
-LOG_STD_MAX = 2
-LOG_STD_MIN = -5
+LOG_STD_MIN, LOG_STD_MAX = -5, 2
 
 
 class Actor(nn.Module):
@@ -410,7 +375,8 @@ class Actor(nn.Module):
 
     def __init__(self, obs_dim: int, act_dim: int, action_low, action_high, hidden_dim: int = 256):
         super().__init__()
-        self.net = nn.Sequential(nn.Linear(obs_dim, hidden_dim), nn.ReLU(), nn.Linear(hidden_dim, hidden_dim), nn.ReLU())
+        self.net = nn.Sequential(nn.Linear(obs_dim, hidden_dim), nn.ReLU(), nn.Linear(hidden_dim, hidden_dim),
+                                 nn.ReLU())
         self.fc_mean, self.fc_logstd = nn.Linear(hidden_dim, act_dim), nn.Linear(hidden_dim, act_dim)
         low, high = torch.as_tensor(action_low, dtype=torch.float32), torch.as_tensor(action_high, dtype=torch.float32)
         self.register_buffer("action_scale", (high - low) / 2.0)
@@ -458,8 +424,7 @@ def actor_file(actor: Actor, env_id: str, **extra) -> dict:
 
 # --- shared: critic ---
 class TwinQ(nn.Module):
-    """Two Q-networks as one module: every weight has a leading dimension of 2, so each layer of both critics
-    is one batched matmul. forward returns Q-values of shape (2, batch)."""
+    """Two Q-networks as one module, each weight with a leading dimension of 2 (a batched matmul); Q of shape (2, B)."""
 
     def __init__(self, obs_dim: int, act_dim: int, hidden_dim: int = 256, num_q: int = 2):
         super().__init__()
@@ -482,10 +447,9 @@ class TwinQ(nn.Module):
 
 # --- shared: sac ---
 class SAC:
-    """Actor, twin critics, target critics and the temperature, with their optimisers; one `update` per env
-    step. absorbing=True (DAC's absorbing states, `--termination-remedy absorbing`): observations carry a last
-    indicator column, 1 at the absorbing state that follows a termination. The actor never sees it; at the
-    absorbing state the only action is zero, so it has no entropy term and no actor or temperature loss."""
+    """Actor, twin critics, target critics and the temperature, with their optimisers; one `update` per env step.
+    absorbing=True (DAC's absorbing states): observations carry a last indicator column, 1 at the absorbing state
+    after a termination, which the actor never sees; there the only action is zero: no entropy, actor or alpha loss."""
 
     def __init__(self, obs_dim, act_dim, action_low, action_high, args, device, absorbing: bool = False):
         self.absorbing, self.gamma, self.tau, self.target_entropy = absorbing, args.gamma, args.tau, -float(act_dim)
@@ -496,7 +460,8 @@ class SAC:
         self.log_alpha = torch.tensor(float(np.log(args.alpha)), device=device, requires_grad=args.autotune)
         self.q_optimizer = torch.optim.Adam(self.qf.parameters(), lr=args.q_lr, fused=True)
         self.actor_optimizer = torch.optim.Adam(self.actor.parameters(), lr=args.policy_lr, fused=True)
-        self.alpha_optimizer = torch.optim.Adam([self.log_alpha], lr=args.policy_lr, fused=True) if args.autotune else None
+        self.alpha_optimizer = (torch.optim.Adam([self.log_alpha], lr=args.policy_lr, fused=True) if args.autotune
+                                else None)
 
     def policy(self, obs):
         """a ~ pi(.|s) and log pi(a|s); with absorbing states, a = 0 and log pi = 0 where s is absorbing."""
@@ -536,7 +501,6 @@ class SAC:
         self.q_optimizer.zero_grad(set_to_none=False)
         qf_loss.backward()
         self.q_optimizer.step()
-
         actor_loss, alpha_loss, entropy = self.actor_loss(obs)
         self.actor_optimizer.zero_grad(set_to_none=False)
         if self.alpha_optimizer is not None:
@@ -652,8 +616,9 @@ def load_demonstrations(path: str, env: gym.Env, num_trajs: Optional[int] = None
             fail(f"hold {len(data['episode_lengths'])} episodes, fewer than --num-expert-trajs {num_trajs}",
                  "pass a smaller --num-expert-trajs")
         end = int(data["episode_starts"][num_trajs - 1] + data["episode_lengths"][num_trajs - 1])
-        data |= {k: data[k][: num_trajs if k.startswith("episode_") else end] for k in (*DEMO_KEYS, "actions") if k in data}
-    if "random_return" not in meta:  # files from before issue 31: measured now (`demos.py info --add-random-return`)
+        data |= {k: data[k][: num_trajs if k.startswith("episode_") else end]
+                 for k in (*DEMO_KEYS, "actions") if k in data}
+    if "random_return" not in meta:  # older files: measured now (`demos.py info --add-random-return` stores it)
         meta["random_return"] = random_return(env_id)
         print(f"{path}: no random-policy return in its metadata; uniform actions return {meta['random_return']:.1f}")
     return data | {"metadata": meta}
@@ -663,8 +628,7 @@ def load_demonstrations(path: str, env: gym.Env, num_trajs: Optional[int] = None
 # --- shared: expert data ---
 def expert_tensors(demos: dict, seed: int, device, state_noise: float = 0.0, action_noise: float = 0.0,
                    action_low=None, action_high=None) -> dict:
-    """The expert transitions as tensors, with the noise of the noise-robustness experiment added once (actions
-    clipped to the box; no "actions" from state-only demonstrations)."""
+    """The expert transitions as tensors, the noise-robustness experiment's noise added once (actions in the box)."""
     rng = np.random.default_rng(seed + 1)
     obs, next_obs, actions = demos["observations"], demos["next_observations"], demos.get("actions")
     if state_noise > 0:
@@ -680,8 +644,7 @@ def expert_tensors(demos: dict, seed: int, device, state_noise: float = 0.0, act
 
 # --- shared: evaluation ---
 def evaluate(act, env_id: str, num_episodes: int, seed: int, capture_video_dir: Optional[str] = None) -> list:
-    """Returns of the deterministic policy on its own env; episode i starts from reset(seed=seed + i), so
-    every evaluation of a run sees the same start states."""
+    """Returns of the deterministic policy on its own env, episode i from reset(seed=seed + i): the same starts."""
     env = make_env(env_id, seed, render_mode="rgb_array" if capture_video_dir else None)
     if capture_video_dir:
         env = gym.wrappers.RecordVideo(env, capture_video_dir, episode_trigger=lambda ep: ep == 0, disable_logger=True)
@@ -704,22 +667,21 @@ def random_return(env_id: str, num_episodes: int = 10, seed: int = 100_000) -> f
 
 
 def normalized_score(ret: float, random: Optional[float], expert: Optional[float]) -> Optional[float]:
-    """(R - R_random) / (R_expert - R_random): 0 for random actions, 1 for the demonstrations (D4RL's convention);
-    None where either is unknown or the expert is no better than random."""
+    """(R - R_random) / (R_expert - R_random), D4RL's: 0 random, 1 the demonstrations; None if unknown or not above."""
     return (ret - random) / (expert - random) if random is not None and expert is not None and expert > random else None
 # --- end shared: evaluation ---
 
 
 # --- shared: run ---
 class Run:
-    """The run's directory (config.json, TensorBoard, results.json with `extra` added), an evaluation every --eval-freq
-    steps, and its `Checkpoints` (every `checkpoint_freq` steps, 0: none; on Ctrl-C / SIGTERM; --resume)."""
+    """The run's directory (config.json, TensorBoard, results.json with `extra`), evaluations, its `Checkpoints`."""
 
-    def __init__(self, args, checkpoint: Optional[dict], stateful: dict, expert_return: Optional[float], device,
-                 checkpoint_freq: int = 0, random_return: Optional[float] = None):
+    def __init__(self, args, checkpoint: Optional[dict], stateful: dict, demos: Optional[dict], device,
+                 checkpoint_freq: int = 0):
         self.args, self.extra, self.evals, self.start_step, self.sps = args, {}, [], 0, 0.0
-        self.expert_return = expert_return if expert_return is not None and np.isfinite(expert_return) else None
-        self.random_return = random_return  # the normalized score's 0 (the expert's return is its 1)
+        returns = demos["episode_returns"] if demos else np.array([np.nan])  # the normalized score's 1 (random's: 0)
+        self.expert_return = float(returns.mean()) if np.isfinite(returns.mean()) else None
+        self.random_return = demos["metadata"]["random_return"] if demos else None
         self.name = checkpoint["run_name"] if checkpoint else args.run_name or \
             f"{args.env_id}__{args.exp_name}__{args.seed}__{int(time.time())}"
         self.dir = os.path.join("runs", self.name)
@@ -728,7 +690,10 @@ class Run:
         self.writer, self.machine = tensorboard(args, self.name, self.dir), machine(device)
         self.start_time = time.time()  # time.time() - start_time: the run's wall time (a resumed run's included)
         self.checkpoints = Checkpoints(self, stateful, checkpoint_freq, checkpoint, device)
-        self.tick = (self.start_step, time.perf_counter())  # where SPS counts from
+        self.tick, self.shown, self.tty = (self.start_step, time.perf_counter()), 0.0, sys.stdout.isatty()
+        expert = f"{len(returns)} demonstration episodes, return {returns.mean():.1f} | " if demos else ""
+        print(f"{'resumed ' * bool(checkpoint)}{self.dir} at step {self.start_step} of {args.total_timesteps} | "
+              f"{args.env_id} | {expert}{device}, threads {torch.get_num_threads()}", flush=True)
 
     def log(self, metrics: dict, step: int) -> None:
         for name, value in metrics.items():
@@ -737,23 +702,35 @@ class Run:
 
     def end_step(self, step: int, act) -> None:
         """After env step `step` (counted from 1): an evaluation every --eval-freq steps, a checkpoint when due."""
+        self.sps = (step - self.tick[0]) / (time.perf_counter() - self.tick[1])  # since the last evaluation
         if step % self.args.eval_freq == 0 or step == self.args.total_timesteps:
-            self.sps = (step - self.tick[0]) / (time.perf_counter() - self.tick[1])  # since the last evaluation
             self.evaluate(step, act)
             self.tick = (step, time.perf_counter())
+        elif self.tty and time.perf_counter() - self.shown > 10:
+            self.show(step)
         self.checkpoints.end_step(step)
 
     def evaluate(self, step: int, act) -> None:
-        """--eval-episodes of the deterministic policy: logged, written to results.json, printed in one line."""
+        """--eval-episodes of the deterministic policy: logged, written to results.json, shown."""
         returns = evaluate(act, self.args.env_id, self.args.eval_episodes, seed=self.args.seed + 100_000)
         mean, std = float(np.mean(returns)), float(np.std(returns))
         normalized = normalized_score(mean, self.random_return, self.expert_return)
         self.evals.append({"step": step, "mean": mean, "std": std, "normalized": normalized})
         self.log({"eval/return": mean, "eval/normalized_return": normalized, "charts/SPS": self.sps}, step)
         self.write_results(finished=False)
-        versus = f" = {normalized:.2f} normalized (random 0, expert 1)" if normalized is not None else ""
-        print(f"step {step}/{self.args.total_timesteps} | {self.sps:.0f} SPS | {(time.time() - self.start_time) / 60:.0f} "
-              f"min | eval return {mean:.1f} +- {std:.1f}{versus}", flush=True)
+        self.show(step)
+
+    def show(self, step: int) -> None:
+        """One line: steps, SPS, minutes so far and left, the latest evaluation (on a terminal, rewritten in place)."""
+        total, last = self.args.total_timesteps, self.evals[-1] if self.evals else None
+        line = (f"step {step}/{total} | {self.sps:.0f} SPS | {(time.time() - self.start_time) / 60:.0f} min, "
+                f"{(total - step) / max(self.sps, 1e-6) / 60:.0f} min left")
+        if last:
+            score = f" = {last['normalized']:.2f} normalized" if last["normalized"] is not None else ""
+            line += f" | eval at {last['step']}: return {last['mean']:.1f} +- {last['std']:.1f}{score}"
+        stays = not self.tty or (last is not None and last["step"] == step)
+        print(f"\r{line}\033[K" if self.tty else line, end="\n" if stays else "", flush=True)
+        self.shown = time.perf_counter()
 
     def write_results(self, finished: bool) -> None:
         """results.json: the run's config, its evaluation curve and where it ran (format in docs/sweeps.md)."""
@@ -762,7 +739,8 @@ class Run:
             "algo": self.args.exp_name, "env_id": self.args.env_id, "seed": self.args.seed, "finished": finished,
             "evals": self.evals, "final_return": final.get("mean"), "final_normalized_return": final.get("normalized"),
             "random_return": self.random_return, "expert_return": self.expert_return, "sps": self.sps,
-            "wall_time_s": time.time() - self.start_time, "machine": self.machine, "config": asdict(self.args)} | self.extra)
+            "wall_time_s": time.time() - self.start_time, "machine": self.machine, "config": asdict(self.args),
+        } | self.extra)
 
     def finish(self, act, models: dict) -> None:
         """The last checkpoint and results.json, the models (unless --no-save-model), a video (--capture-video)."""
@@ -772,7 +750,7 @@ class Run:
         for filename, content in models.items() if self.args.save_model else ():
             save_file(os.path.join(self.dir, filename), content)
         if self.args.capture_video:
-            evaluate(act, self.args.env_id, 1, self.args.seed + 100_000, capture_video_dir=os.path.join(self.dir, "videos"))
+            evaluate(act, self.args.env_id, 1, self.args.seed + 100_000, os.path.join(self.dir, "videos"))
         self.writer.close()
         print(f"done: {self.args.total_timesteps} steps in {(time.time() - self.start_time) / 60:.1f} min: {self.dir}")
 
@@ -791,8 +769,10 @@ class Checkpoints:
                     obj.load_state_dict(checkpoint[name])
             run.evals, run.start_step = checkpoint["evals"], checkpoint["step"]
             run.start_time -= checkpoint["wall_time"]
-            set_rng_state(checkpoint["rng"])
-            print(f"resumed {run.dir} at step {run.start_step}")
+            rng = checkpoint["rng"]
+            random.setstate(rng["python"]), np.random.set_state(rng["numpy"]), torch.set_rng_state(rng["torch"])
+            if rng["cuda"] is not None and torch.cuda.is_available():
+                torch.cuda.set_rng_state_all(rng["cuda"])
         signal.signal(signal.SIGINT, self.on_signal), signal.signal(signal.SIGTERM, self.on_signal)
 
     def on_signal(self, signum, frame):
@@ -816,7 +796,9 @@ class Checkpoints:
     def save(self, step: int) -> None:
         run, state = self.run, {name: dict(obj) if isinstance(obj, dict) else obj.state_dict()
                                 for name, obj in self.stateful.items()}
-        save_file(os.path.join(run.dir, "checkpoint.pt"), state | dict(step=step, evals=run.evals, rng=rng_state(),
+        rng = {"python": random.getstate(), "numpy": np.random.get_state(), "torch": torch.get_rng_state(),
+               "cuda": torch.cuda.get_rng_state_all() if torch.cuda.is_available() else None}
+        save_file(os.path.join(run.dir, "checkpoint.pt"), state | dict(step=step, evals=run.evals, rng=rng,
                   wall_time=time.time() - run.start_time, config=asdict(run.args), run_name=run.name))
 
 
@@ -828,12 +810,13 @@ def tensorboard(args, name: str, run_dir: str):
                    config=vars(args), name=name, id=name, resume="allow", save_code=True)
     from torch.utils.tensorboard import SummaryWriter
     writer = SummaryWriter(run_dir)
-    writer.add_text("hyperparameters", "|param|value|\n|-|-|\n" + "\n".join(f"|{k}|{v}|" for k, v in asdict(args).items()))
+    table = "\n".join(f"|{k}|{v}|" for k, v in asdict(args).items())
+    writer.add_text("hyperparameters", "|param|value|\n|-|-|\n" + table)
     return writer
 
 
 def save_file(path: str, obj) -> None:
-    """torch.save for .pt files, JSON otherwise, through a temporary file: a run killed while saving keeps the old one."""
+    """torch.save for .pt files, JSON otherwise, through a temporary file: a run killed while saving keeps the old."""
     if path.endswith(".pt"):
         torch.save(obj, path + ".tmp")
     else:
@@ -842,35 +825,20 @@ def save_file(path: str, obj) -> None:
     os.replace(path + ".tmp", path)
 
 
-def rng_state() -> dict:
-    return {"python": random.getstate(), "numpy": np.random.get_state(), "torch": torch.get_rng_state(),
-            "cuda": torch.cuda.get_rng_state_all() if torch.cuda.is_available() else None}
-
-
-def set_rng_state(rng: dict) -> None:
-    random.setstate(rng["python"]), np.random.set_state(rng["numpy"]), torch.set_rng_state(rng["torch"])
-    if rng["cuda"] is not None and torch.cuda.is_available():
-        torch.cuda.set_rng_state_all(rng["cuda"])
-
-
 def machine(device) -> dict:
-    """What decides a run's numbers besides its config: versions, CPU, threads, device, and the code's git commit
-    ("-dirty" with uncommitted changes; None outside a git checkout)."""
-    from importlib.metadata import version
-    from shutil import which
-    from subprocess import run
+    """What decides a run's numbers besides its config: versions, CPU, threads, device, the code's commit ("-dirty")."""
     cpuinfo = open("/proc/cpuinfo").read().splitlines() if os.path.exists("/proc/cpuinfo") else []
-    cpu = next((line.split(":", 1)[1].strip() for line in cpuinfo if line.startswith("model name")), platform.processor())
-    git = run(["git", "describe", "--always", "--dirty", "--abbrev=12"], capture_output=True, text=True,
-              cwd=os.path.dirname(os.path.abspath(__file__))).stdout.strip() if which("git") else ""
+    models = (line.split(":", 1)[1].strip() for line in cpuinfo if line.startswith("model name"))
+    cpu = next(models, platform.processor())
+    git = subprocess.run(["git", "describe", "--always", "--dirty", "--abbrev=12"], capture_output=True, text=True,
+                         cwd=os.path.dirname(os.path.abspath(__file__))).stdout.strip() if shutil.which("git") else ""
     return {"host": platform.node(), "cpu": cpu, "cpu_capability": torch.backends.cpu.get_cpu_capability(),
             "threads": torch.get_num_threads(), "device": str(device), "python": platform.python_version(),
-            **{name: version(name) for name in ("torch", "numpy", "gymnasium", "mujoco")}, "git": git or None}
+            **{name: metadata.version(name) for name in ("torch", "numpy", "gymnasium", "mujoco")}, "git": git or None}
 
 
 def resume(args, keep=("total_timesteps", "cuda", "threads")):
-    """--resume: the saved checkpoint, and the saved run's config with the fields in `keep` taken from the command
-    line where given there."""
+    """--resume: the saved checkpoint, and its run's config with the fields in `keep` from the command line if given."""
     path = os.path.join(args.resume, "checkpoint.pt") if os.path.isdir(args.resume) else args.resume
     if not os.path.isfile(path):
         raise SystemExit(f"error: no checkpoint at '{path}'; pass --resume runs/<run> of a run that saved one")
@@ -911,9 +879,9 @@ if __name__ == "__main__":
                              level_lr=args.disc_level_lr).to(device)
     rb = ReplayBuffer(aug_dim, act_dim, args.buffer_size, device)
     measures = {"interval": None, "demos": None, "history": []}  # reward_measures' memory
-    stateful = {"agent": agent, "disc": disc, "disc_optimizer": disc.optimizer, "replay_buffer": rb, "measures": measures}
-    run = Run(args, checkpoint, stateful, float(demos["episode_returns"].mean()), device,
-              checkpoint_freq=args.checkpoint_freq, random_return=demos["metadata"]["random_return"])
+    stateful = {"agent": agent, "disc": disc, "disc_optimizer": disc.optimizer, "replay_buffer": rb,
+                "measures": measures}
+    run = Run(args, checkpoint, stateful, demos, device, checkpoint_freq=args.checkpoint_freq)
     run.extra = {"reward_measures": measures["history"]}
     anchor = absorbing and args.absorbing_anchor == "min"
     as_x = lambda data: tuple(data[k] for k in ("obs", "actions", "next_obs", "terminations"))  # what f and D read

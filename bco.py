@@ -9,33 +9,33 @@ the policy for alpha * |pre-demonstration steps| env steps, improve M on the new
 the expert's states again, clone again.
 
 Implementation choices and deviations
-1. Transitions come from one env with explicit resets, each stored with its true next state, so no
-   inverse-model pair spans an episode boundary; the expert's pairs are (observations[t],
-   next_observations[t]) of one trajectory.
+1. Transitions come from one env with explicit resets, each with its true next state, so no inverse-model pair
+   spans an episode boundary; the expert's pairs are (observations[t], next_observations[t]) of one trajectory.
 2. M is a 256-256 ReLU MLP on concat(s, s') with a tanh output in the actor's [-1, 1] range, trained
    by MSE; inferred actions are scaled into the env's box (so they never leave it).
-3. `--inverse-data aggregate` (default) trains M on all transitions gathered so far (guards against
-   forgetting the exploration data); `finetune` continues on the newest batch only (the reference
-   implementations' choice).
+3. `--inverse-data aggregate` (default): M learns from all transitions so far (it keeps the exploration data);
+   `finetune`: from the newest batch only (the reference implementations' choice).
 4. The policy is the project's SAC actor, cloned by the squashed-Gaussian NLL of the inferred actions
-   (as bc.py), and kept across iterations (each iteration continues its training).
-5. The budget is env steps: `--pre-demo-steps` + `--iterations` x alpha x pre-demo steps, all counted
-   in results.json ("step" is env steps used so far, "iteration" the iteration) and printed; without
-   `--total-timesteps`, that budget is recorded as total_timesteps in the config.
+   (bc.py's `--loss nll`), and kept across iterations (each iteration continues its training).
+5. The budget is env steps, `--pre-demo-steps` + `--iterations` x alpha x pre-demo steps (or `--total-timesteps`),
+   all counted: results.json's "step" is env steps used so far, "iteration" the iteration.
 6. No checkpoints (a run of the default length takes minutes): Ctrl-C stops the run at once.
 
 Logged metrics: losses/inverse, losses/bc and charts/env_steps (against the iteration); eval/return and
-eval/normalized_return (against env steps, as in every script).
+eval/normalized_return (against env steps, as in every script). Details: docs/baselines.md
 """
 
 import json
 import os
 import platform
 import random
+import shutil
 import signal
+import subprocess
 import sys
 import time
 from dataclasses import asdict, dataclass, fields, replace
+from importlib import metadata
 from typing import Literal, Optional
 
 import gymnasium as gym
@@ -170,16 +170,13 @@ def make_env(env_id: str, seed: int, render_mode: Optional[str] = None) -> gym.E
 
 
 def seed_everything(seed: int, torch_deterministic: bool = True) -> None:
-    random.seed(seed)
-    np.random.seed(seed)
-    torch.manual_seed(seed)
+    random.seed(seed), np.random.seed(seed), torch.manual_seed(seed)
     torch.backends.cudnn.deterministic = torch_deterministic
 # --- end shared: env ---
 
 
 # --- shared: actor ---
-LOG_STD_MAX = 2
-LOG_STD_MIN = -5
+LOG_STD_MIN, LOG_STD_MAX = -5, 2
 
 
 class Actor(nn.Module):
@@ -188,7 +185,8 @@ class Actor(nn.Module):
 
     def __init__(self, obs_dim: int, act_dim: int, action_low, action_high, hidden_dim: int = 256):
         super().__init__()
-        self.net = nn.Sequential(nn.Linear(obs_dim, hidden_dim), nn.ReLU(), nn.Linear(hidden_dim, hidden_dim), nn.ReLU())
+        self.net = nn.Sequential(nn.Linear(obs_dim, hidden_dim), nn.ReLU(), nn.Linear(hidden_dim, hidden_dim),
+                                 nn.ReLU())
         self.fc_mean, self.fc_logstd = nn.Linear(hidden_dim, act_dim), nn.Linear(hidden_dim, act_dim)
         low, high = torch.as_tensor(action_low, dtype=torch.float32), torch.as_tensor(action_high, dtype=torch.float32)
         self.register_buffer("action_scale", (high - low) / 2.0)
@@ -276,8 +274,9 @@ def load_demonstrations(path: str, env: gym.Env, num_trajs: Optional[int] = None
             fail(f"hold {len(data['episode_lengths'])} episodes, fewer than --num-expert-trajs {num_trajs}",
                  "pass a smaller --num-expert-trajs")
         end = int(data["episode_starts"][num_trajs - 1] + data["episode_lengths"][num_trajs - 1])
-        data |= {k: data[k][: num_trajs if k.startswith("episode_") else end] for k in (*DEMO_KEYS, "actions") if k in data}
-    if "random_return" not in meta:  # files from before issue 31: measured now (`demos.py info --add-random-return`)
+        data |= {k: data[k][: num_trajs if k.startswith("episode_") else end]
+                 for k in (*DEMO_KEYS, "actions") if k in data}
+    if "random_return" not in meta:  # older files: measured now (`demos.py info --add-random-return` stores it)
         meta["random_return"] = random_return(env_id)
         print(f"{path}: no random-policy return in its metadata; uniform actions return {meta['random_return']:.1f}")
     return data | {"metadata": meta}
@@ -286,8 +285,7 @@ def load_demonstrations(path: str, env: gym.Env, num_trajs: Optional[int] = None
 
 # --- shared: evaluation ---
 def evaluate(act, env_id: str, num_episodes: int, seed: int, capture_video_dir: Optional[str] = None) -> list:
-    """Returns of the deterministic policy on its own env; episode i starts from reset(seed=seed + i), so
-    every evaluation of a run sees the same start states."""
+    """Returns of the deterministic policy on its own env, episode i from reset(seed=seed + i): the same starts."""
     env = make_env(env_id, seed, render_mode="rgb_array" if capture_video_dir else None)
     if capture_video_dir:
         env = gym.wrappers.RecordVideo(env, capture_video_dir, episode_trigger=lambda ep: ep == 0, disable_logger=True)
@@ -310,22 +308,21 @@ def random_return(env_id: str, num_episodes: int = 10, seed: int = 100_000) -> f
 
 
 def normalized_score(ret: float, random: Optional[float], expert: Optional[float]) -> Optional[float]:
-    """(R - R_random) / (R_expert - R_random): 0 for random actions, 1 for the demonstrations (D4RL's convention);
-    None where either is unknown or the expert is no better than random."""
+    """(R - R_random) / (R_expert - R_random), D4RL's: 0 random, 1 the demonstrations; None if unknown or not above."""
     return (ret - random) / (expert - random) if random is not None and expert is not None and expert > random else None
 # --- end shared: evaluation ---
 
 
 # --- shared: run ---
 class Run:
-    """The run's directory (config.json, TensorBoard, results.json with `extra` added), an evaluation every --eval-freq
-    steps, and its `Checkpoints` (every `checkpoint_freq` steps, 0: none; on Ctrl-C / SIGTERM; --resume)."""
+    """The run's directory (config.json, TensorBoard, results.json with `extra`), evaluations, its `Checkpoints`."""
 
-    def __init__(self, args, checkpoint: Optional[dict], stateful: dict, expert_return: Optional[float], device,
-                 checkpoint_freq: int = 0, random_return: Optional[float] = None):
+    def __init__(self, args, checkpoint: Optional[dict], stateful: dict, demos: Optional[dict], device,
+                 checkpoint_freq: int = 0):
         self.args, self.extra, self.evals, self.start_step, self.sps = args, {}, [], 0, 0.0
-        self.expert_return = expert_return if expert_return is not None and np.isfinite(expert_return) else None
-        self.random_return = random_return  # the normalized score's 0 (the expert's return is its 1)
+        returns = demos["episode_returns"] if demos else np.array([np.nan])  # the normalized score's 1 (random's: 0)
+        self.expert_return = float(returns.mean()) if np.isfinite(returns.mean()) else None
+        self.random_return = demos["metadata"]["random_return"] if demos else None
         self.name = checkpoint["run_name"] if checkpoint else args.run_name or \
             f"{args.env_id}__{args.exp_name}__{args.seed}__{int(time.time())}"
         self.dir = os.path.join("runs", self.name)
@@ -334,7 +331,10 @@ class Run:
         self.writer, self.machine = tensorboard(args, self.name, self.dir), machine(device)
         self.start_time = time.time()  # time.time() - start_time: the run's wall time (a resumed run's included)
         self.checkpoints = Checkpoints(self, stateful, checkpoint_freq, checkpoint, device)
-        self.tick = (self.start_step, time.perf_counter())  # where SPS counts from
+        self.tick, self.shown, self.tty = (self.start_step, time.perf_counter()), 0.0, sys.stdout.isatty()
+        expert = f"{len(returns)} demonstration episodes, return {returns.mean():.1f} | " if demos else ""
+        print(f"{'resumed ' * bool(checkpoint)}{self.dir} at step {self.start_step} of {args.total_timesteps} | "
+              f"{args.env_id} | {expert}{device}, threads {torch.get_num_threads()}", flush=True)
 
     def log(self, metrics: dict, step: int) -> None:
         for name, value in metrics.items():
@@ -343,23 +343,35 @@ class Run:
 
     def end_step(self, step: int, act) -> None:
         """After env step `step` (counted from 1): an evaluation every --eval-freq steps, a checkpoint when due."""
+        self.sps = (step - self.tick[0]) / (time.perf_counter() - self.tick[1])  # since the last evaluation
         if step % self.args.eval_freq == 0 or step == self.args.total_timesteps:
-            self.sps = (step - self.tick[0]) / (time.perf_counter() - self.tick[1])  # since the last evaluation
             self.evaluate(step, act)
             self.tick = (step, time.perf_counter())
+        elif self.tty and time.perf_counter() - self.shown > 10:
+            self.show(step)
         self.checkpoints.end_step(step)
 
     def evaluate(self, step: int, act) -> None:
-        """--eval-episodes of the deterministic policy: logged, written to results.json, printed in one line."""
+        """--eval-episodes of the deterministic policy: logged, written to results.json, shown."""
         returns = evaluate(act, self.args.env_id, self.args.eval_episodes, seed=self.args.seed + 100_000)
         mean, std = float(np.mean(returns)), float(np.std(returns))
         normalized = normalized_score(mean, self.random_return, self.expert_return)
         self.evals.append({"step": step, "mean": mean, "std": std, "normalized": normalized})
         self.log({"eval/return": mean, "eval/normalized_return": normalized, "charts/SPS": self.sps}, step)
         self.write_results(finished=False)
-        versus = f" = {normalized:.2f} normalized (random 0, expert 1)" if normalized is not None else ""
-        print(f"step {step}/{self.args.total_timesteps} | {self.sps:.0f} SPS | {(time.time() - self.start_time) / 60:.0f} "
-              f"min | eval return {mean:.1f} +- {std:.1f}{versus}", flush=True)
+        self.show(step)
+
+    def show(self, step: int) -> None:
+        """One line: steps, SPS, minutes so far and left, the latest evaluation (on a terminal, rewritten in place)."""
+        total, last = self.args.total_timesteps, self.evals[-1] if self.evals else None
+        line = (f"step {step}/{total} | {self.sps:.0f} SPS | {(time.time() - self.start_time) / 60:.0f} min, "
+                f"{(total - step) / max(self.sps, 1e-6) / 60:.0f} min left")
+        if last:
+            score = f" = {last['normalized']:.2f} normalized" if last["normalized"] is not None else ""
+            line += f" | eval at {last['step']}: return {last['mean']:.1f} +- {last['std']:.1f}{score}"
+        stays = not self.tty or (last is not None and last["step"] == step)
+        print(f"\r{line}\033[K" if self.tty else line, end="\n" if stays else "", flush=True)
+        self.shown = time.perf_counter()
 
     def write_results(self, finished: bool) -> None:
         """results.json: the run's config, its evaluation curve and where it ran (format in docs/sweeps.md)."""
@@ -368,7 +380,8 @@ class Run:
             "algo": self.args.exp_name, "env_id": self.args.env_id, "seed": self.args.seed, "finished": finished,
             "evals": self.evals, "final_return": final.get("mean"), "final_normalized_return": final.get("normalized"),
             "random_return": self.random_return, "expert_return": self.expert_return, "sps": self.sps,
-            "wall_time_s": time.time() - self.start_time, "machine": self.machine, "config": asdict(self.args)} | self.extra)
+            "wall_time_s": time.time() - self.start_time, "machine": self.machine, "config": asdict(self.args),
+        } | self.extra)
 
     def finish(self, act, models: dict) -> None:
         """The last checkpoint and results.json, the models (unless --no-save-model), a video (--capture-video)."""
@@ -378,7 +391,7 @@ class Run:
         for filename, content in models.items() if self.args.save_model else ():
             save_file(os.path.join(self.dir, filename), content)
         if self.args.capture_video:
-            evaluate(act, self.args.env_id, 1, self.args.seed + 100_000, capture_video_dir=os.path.join(self.dir, "videos"))
+            evaluate(act, self.args.env_id, 1, self.args.seed + 100_000, os.path.join(self.dir, "videos"))
         self.writer.close()
         print(f"done: {self.args.total_timesteps} steps in {(time.time() - self.start_time) / 60:.1f} min: {self.dir}")
 
@@ -397,8 +410,10 @@ class Checkpoints:
                     obj.load_state_dict(checkpoint[name])
             run.evals, run.start_step = checkpoint["evals"], checkpoint["step"]
             run.start_time -= checkpoint["wall_time"]
-            set_rng_state(checkpoint["rng"])
-            print(f"resumed {run.dir} at step {run.start_step}")
+            rng = checkpoint["rng"]
+            random.setstate(rng["python"]), np.random.set_state(rng["numpy"]), torch.set_rng_state(rng["torch"])
+            if rng["cuda"] is not None and torch.cuda.is_available():
+                torch.cuda.set_rng_state_all(rng["cuda"])
         signal.signal(signal.SIGINT, self.on_signal), signal.signal(signal.SIGTERM, self.on_signal)
 
     def on_signal(self, signum, frame):
@@ -422,7 +437,9 @@ class Checkpoints:
     def save(self, step: int) -> None:
         run, state = self.run, {name: dict(obj) if isinstance(obj, dict) else obj.state_dict()
                                 for name, obj in self.stateful.items()}
-        save_file(os.path.join(run.dir, "checkpoint.pt"), state | dict(step=step, evals=run.evals, rng=rng_state(),
+        rng = {"python": random.getstate(), "numpy": np.random.get_state(), "torch": torch.get_rng_state(),
+               "cuda": torch.cuda.get_rng_state_all() if torch.cuda.is_available() else None}
+        save_file(os.path.join(run.dir, "checkpoint.pt"), state | dict(step=step, evals=run.evals, rng=rng,
                   wall_time=time.time() - run.start_time, config=asdict(run.args), run_name=run.name))
 
 
@@ -434,12 +451,13 @@ def tensorboard(args, name: str, run_dir: str):
                    config=vars(args), name=name, id=name, resume="allow", save_code=True)
     from torch.utils.tensorboard import SummaryWriter
     writer = SummaryWriter(run_dir)
-    writer.add_text("hyperparameters", "|param|value|\n|-|-|\n" + "\n".join(f"|{k}|{v}|" for k, v in asdict(args).items()))
+    table = "\n".join(f"|{k}|{v}|" for k, v in asdict(args).items())
+    writer.add_text("hyperparameters", "|param|value|\n|-|-|\n" + table)
     return writer
 
 
 def save_file(path: str, obj) -> None:
-    """torch.save for .pt files, JSON otherwise, through a temporary file: a run killed while saving keeps the old one."""
+    """torch.save for .pt files, JSON otherwise, through a temporary file: a run killed while saving keeps the old."""
     if path.endswith(".pt"):
         torch.save(obj, path + ".tmp")
     else:
@@ -448,35 +466,20 @@ def save_file(path: str, obj) -> None:
     os.replace(path + ".tmp", path)
 
 
-def rng_state() -> dict:
-    return {"python": random.getstate(), "numpy": np.random.get_state(), "torch": torch.get_rng_state(),
-            "cuda": torch.cuda.get_rng_state_all() if torch.cuda.is_available() else None}
-
-
-def set_rng_state(rng: dict) -> None:
-    random.setstate(rng["python"]), np.random.set_state(rng["numpy"]), torch.set_rng_state(rng["torch"])
-    if rng["cuda"] is not None and torch.cuda.is_available():
-        torch.cuda.set_rng_state_all(rng["cuda"])
-
-
 def machine(device) -> dict:
-    """What decides a run's numbers besides its config: versions, CPU, threads, device, and the code's git commit
-    ("-dirty" with uncommitted changes; None outside a git checkout)."""
-    from importlib.metadata import version
-    from shutil import which
-    from subprocess import run
+    """What decides a run's numbers besides its config: versions, CPU, threads, device, the code's commit ("-dirty")."""
     cpuinfo = open("/proc/cpuinfo").read().splitlines() if os.path.exists("/proc/cpuinfo") else []
-    cpu = next((line.split(":", 1)[1].strip() for line in cpuinfo if line.startswith("model name")), platform.processor())
-    git = run(["git", "describe", "--always", "--dirty", "--abbrev=12"], capture_output=True, text=True,
-              cwd=os.path.dirname(os.path.abspath(__file__))).stdout.strip() if which("git") else ""
+    models = (line.split(":", 1)[1].strip() for line in cpuinfo if line.startswith("model name"))
+    cpu = next(models, platform.processor())
+    git = subprocess.run(["git", "describe", "--always", "--dirty", "--abbrev=12"], capture_output=True, text=True,
+                         cwd=os.path.dirname(os.path.abspath(__file__))).stdout.strip() if shutil.which("git") else ""
     return {"host": platform.node(), "cpu": cpu, "cpu_capability": torch.backends.cpu.get_cpu_capability(),
             "threads": torch.get_num_threads(), "device": str(device), "python": platform.python_version(),
-            **{name: version(name) for name in ("torch", "numpy", "gymnasium", "mujoco")}, "git": git or None}
+            **{name: metadata.version(name) for name in ("torch", "numpy", "gymnasium", "mujoco")}, "git": git or None}
 
 
 def resume(args, keep=("total_timesteps", "cuda", "threads")):
-    """--resume: the saved checkpoint, and the saved run's config with the fields in `keep` taken from the command
-    line where given there."""
+    """--resume: the saved checkpoint, and its run's config with the fields in `keep` from the command line if given."""
     path = os.path.join(args.resume, "checkpoint.pt") if os.path.isdir(args.resume) else args.resume
     if not os.path.isfile(path):
         raise SystemExit(f"error: no checkpoint at '{path}'; pass --resume runs/<run> of a run that saved one")
@@ -504,8 +507,9 @@ if __name__ == "__main__":
     expert_next_obs = torch.as_tensor(demos["next_observations"], device=device)
     post_steps = int(round(args.alpha * args.pre_demo_steps))
     if args.total_timesteps is not None and args.total_timesteps < args.pre_demo_steps:
-        raise SystemExit(f"error: --total-timesteps {args.total_timesteps} is below --pre-demo-steps {args.pre_demo_steps}, "
-                         "which BCO spends before its first iteration; pass a smaller --pre-demo-steps")
+        raise SystemExit(f"error: --total-timesteps {args.total_timesteps} is below --pre-demo-steps "
+                         f"{args.pre_demo_steps}, which BCO spends before its first iteration; pass a smaller "
+                         "--pre-demo-steps")
     if args.total_timesteps is not None:  # sweep.py passes every script an env-step budget
         args.iterations = max(0, (args.total_timesteps - args.pre_demo_steps) // max(post_steps, 1))
     budget = args.pre_demo_steps + args.iterations * post_steps
@@ -519,8 +523,7 @@ if __name__ == "__main__":
     agent_optimizer = torch.optim.Adam(agent.parameters(), lr=args.learning_rate)
     inverse_optimizer = torch.optim.Adam(inverse.parameters(), lr=args.learning_rate)
     clone_loss = lambda obs, actions: -agent.log_prob(obs, actions).mean()
-    run = Run(args, None, {}, float(demos["episode_returns"].mean()), device,
-              random_return=demos["metadata"]["random_return"])
+    run = Run(args, None, {}, demos, device)
     signal.signal(signal.SIGINT, signal.default_int_handler)  # no checkpoints here: Ctrl-C stops at once
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
@@ -546,8 +549,8 @@ if __name__ == "__main__":
         run.evaluate(env_steps, agent.act)  # logged against env steps, like every script's evaluation
         run.evals[-1]["iteration"] = iteration
 
-    inverse_file = {"inverse_model": inverse.state_dict(), "env_id": args.env_id, "obs_dim": obs_dim, "act_dim": act_dim,
-                    "hidden_dim": args.hidden_dim}
+    inverse_file = {"inverse_model": inverse.state_dict(), "env_id": args.env_id, "obs_dim": obs_dim,
+                    "act_dim": act_dim, "hidden_dim": args.hidden_dim}
     run.finish(agent.act, {"actor.pt": actor_file(agent, args.env_id, training_steps=env_steps),
                            "inverse_model.pt": inverse_file})
     env.close()

@@ -39,6 +39,7 @@ observation (only where the env's own observation of that state reproduces it), 
 are stepped and the env's next observations and rewards compared with the data's. Any failure is a
 one-line error and nothing is written. Pickles are unpickled with an allow-list (numpy arrays,
 lists, dicts, tuples): a pickle that needs anything else is refused, not executed.
+Details, with one example per format: docs/demonstrations.md
 """
 
 import argparse
@@ -368,7 +369,8 @@ def replay(demos: dict, env: gym.Env) -> str:
     nq, nv, obs0 = sim.model.nq, sim.model.nv, demos["observations"][0].astype(np.float64)
     for hidden in (0, 1, 2):  # positions left out of the observation (x, or x and y): dynamics ignore them
         if len(obs0) >= nq - hidden + nv:
-            qpos, qvel = np.concatenate([sim.init_qpos[:hidden], obs0[:nq - hidden]]), obs0[nq - hidden:nq - hidden + nv]
+            qpos = np.concatenate([sim.init_qpos[:hidden], obs0[:nq - hidden]])
+            qvel = obs0[nq - hidden:nq - hidden + nv]
             sim.set_state(qpos, qvel)
             if np.allclose(sim._get_obs(), obs0, rtol=1e-5, atol=1e-5):
                 break

@@ -1,8 +1,9 @@
 """DRAIL's diffusion discriminator inside GAIL (DRAIL-GAIL) and inside RILe (DRAIL-RILe), on SAC.
 
 Papers: Lai et al., "Diffusion-Reward Adversarial Imitation Learning", NeurIPS 2024,
-https://arxiv.org/abs/2405.16194 (written from the paper and a description of the authors' code,
-whose licence is non-commercial; none of it was copied); Albaba et al., "RILe: Reinforced Imitation Learning".
+https://arxiv.org/abs/2405.16194 (written from the paper and a description of the authors' code, whose licence is
+non-commercial; none of it was copied); Albaba et al., "RILe: Reinforced Imitation Learning",
+https://arxiv.org/abs/2406.08472.
 
 The discriminator is a conditional diffusion model: it predicts the noise added to x0 = (s, a),
 conditioned on a constant label vector (expert = ones, agent = zeros). A pair the model denoises better
@@ -14,31 +15,26 @@ rile.py's discriminator is: the trainer is rewarded from D and the student from 
 update (the shared `rile` block).
 
 Implementation choices and deviations
-1. Network: concat(x_t, label) -> three hidden layers of `--disc-hidden-dim` (1024, DRAIL's width) with a
-   learned timestep embedding added before each ReLU -> the predicted noise. T = 1000 steps, cosine
-   schedule (s = 0.008, betas clipped to [1e-4, 0.9999]), label vectors of 10. Width 1024 costs about
-   6 GFLOP per env step on a CPU (tens of ms); `--disc-hidden-dim 256` is ~16x cheaper and a less
-   faithful discriminator.
-2. Timesteps are sampled antithetically (t and T - 1 - t pair up; batches must be even). As in the
-   authors' code, the two labels get independent (t, noise) draws; `--shared-noise` gives them the same
+1. Network: concat(x_t, label) -> three hidden layers of `--disc-hidden-dim` (1024, DRAIL's width) with a learned
+   timestep embedding added before each ReLU -> the predicted noise; `--disc-hidden-dim 256` is cheaper, less faithful.
+2. T = 1000 steps (`--diffusion-steps`), cosine schedule (s = 0.008, betas clipped to [1e-4, 0.9999]), label vectors
+   of 10. Timesteps are sampled antithetically (t and T - 1 - t pair up; batches must be even).
+3. As in the authors' code, the two labels get independent (t, noise) draws; `--shared-noise` gives them the same
    draw and `--num-draws K` averages K draws (both lower the variance of D; both are deviations).
-3. States are standardised with the expert's mean and std, the same for expert and agent inputs (DRAIL
-   uses a running filter; a fixed one keeps rewards stationary); actions enter raw.
-4. Rewards are recomputed for every sampled batch with no gradient; the model has no dropout or
-   normalisation layers, so train and eval mode coincide. No gradient penalty (DRAIL's default).
-5. Discriminator: Adam lr 1e-4, 128 expert + 128 agent pairs per update, one update per env step, on
-   the newest `--disc-buffer-size` transitions. Everything else as in rile.py / gail.py.
-6. From states only (`--state-only`): x0 = (s, s'), both halves standardised with the expert's state
-   statistics, in both variants (DRAIL-GAIL becomes a diffusion GAIfO); the demonstrations' actions are
-   never loaded. DRAIL-RILe's trainer observes (s, a_S) or, with `--trainer-obs transition`, (s, s'), as in
-   rile.py (its choice 10), with the same refusals. Its trainer batches hold no expert pairs by default
-   (`--trainer-expert-fraction 0`, the paper's; rile.py's choice 8 puts a tenth there), and its trainer discounts
-   by the paper's 0.99 (`--trainer-gamma`; rile.py's choice 11 uses 0.9, measured there only) and its freeze test
-   reads the whole critic loss (`--trainer-freeze-stat reward`; rile.py's choice 5 subtracts the targets' variance).
+4. States are standardised with the expert's mean and std, the same for expert and agent inputs (DRAIL uses a
+   running filter; a fixed one keeps rewards stationary); actions enter raw.
+5. Rewards are recomputed for every sampled batch with no gradient; no dropout or normalisation layers, so train
+   and eval mode coincide. No gradient penalty (DRAIL's default).
+6. Discriminator: Adam lr 1e-4, 128 expert + 128 agent pairs per update, one update per env step, on the newest
+   `--disc-buffer-size` transitions. Everything else as in rile.py / gail.py.
+7. `--state-only` (both variants): x0 = (s, s'), both halves standardised with the expert's state statistics; the
+   demonstrations' actions are never loaded. DRAIL-RILe's trainer observes as rile.py's does (`--trainer-obs`).
+8. DRAIL-RILe's trainer keeps the paper's `--trainer-expert-fraction 0` and `--trainer-gamma 0.99` where rile.py
+   deviates, and freezes on its whole critic loss relative to r_T's variance (`--trainer-freeze-stat reward`).
 
-Logged metrics (both variants; trainer_* in DRAIL-RILe only): charts/episodic_return, charts/SPS, eval/return,
-eval/normalized_return, losses/{student,trainer}_{qf_loss,qf_values,actor_loss,alpha_loss,alpha,entropy},
-losses/disc_loss, losses/disc_gp (always 0), disc/expert_prob, disc/policy_prob, reward/learned_mean.
+Logged metrics (trainer_* in DRAIL-RILe only): charts/{episodic_return,episodic_length,SPS}, eval/{return,
+normalized_return}, losses/{student,trainer}_{qf_loss,qf_values,qf_target_var,actor_loss,alpha_loss,alpha,entropy},
+losses/{disc_loss,disc_gp (always 0)}, disc/{expert,policy}_prob, reward/learned_mean. Details: docs/drail.md
 """
 
 import json
@@ -46,10 +42,13 @@ import math
 import os
 import platform
 import random
+import shutil
 import signal
+import subprocess
 import sys
 import time
 from dataclasses import asdict, dataclass, fields, replace
+from importlib import metadata
 from typing import Literal, NamedTuple, Optional
 
 import gymnasium as gym
@@ -149,8 +148,8 @@ class Args:
     trainer_freeze: bool = True
     """freeze the trainer once its critic has converged (rile.py's header, choice 5)"""
     trainer_freeze_stat: Literal["relative", "reward", "excess", "loss"] = "reward"
-    """the trainer's critic loss relative to its targets' variance (relative), to its reward's (reward), beyond its targets'
-    own sampling variance relative to its reward's (excess), or raw (loss: the paper's words)"""
+    """the trainer's critic loss relative to its targets' variance (relative), to its reward's (reward), beyond its
+    targets' own sampling variance relative to its reward's (excess), or raw (loss: the paper's words)"""
     trainer_freeze_threshold: float = 0.1
     """freeze when the moving average (0.99) of --trainer-freeze-stat stays below this"""
     trainer_freeze_window: int = 10_000
@@ -162,7 +161,8 @@ class Args:
     trainer_release_threshold: float = 1.0
     """a frozen trainer learns again when the statistic, on D's current rewards, rises above this (inf: never)"""
     trainer_obs: Literal["state-action", "transition"] = "state-action"
-    """rile: what the trainer observes: the student's (s, a_S) (paper), or its transition (s, s') (needs --state-only)"""
+    """rile: what the trainer observes: the student's (s, a_S) (paper), or its transition (s, s') (needs
+    --state-only)"""
 
     # Diffusion discriminator arguments
     disc_hidden_dim: int = 1024
@@ -283,37 +283,6 @@ class DiffusionDiscriminator(nn.Module):
         return torch.sigmoid(self(x))
 
 
-# --- shared: gail ---
-def gail_reward(logits, form: str):
-    """The SAC reward from the discriminator's logit l (D = sigmoid(l)), computed stably."""
-    if form == "softplus":
-        return F.softplus(logits)  # -log(1 - D)
-    if form == "logit":
-        return logits  # log D - log(1 - D)
-    if form == "log-d":
-        return -F.softplus(-logits)  # log D
-    raise ValueError(f"unknown reward form '{form}'; choose softplus, logit or log-d")
-
-
-def gail_update(agent: "SAC", disc: nn.Module, rb: "ReplayBuffer", expert: dict, args, state_only: bool = False,
-                update_disc: bool = True) -> dict:
-    """One SAC update on rewards from the current discriminator, then (if update_disc) one discriminator update.
-    D scores pairs (s, a), or with `state_only` transitions (s, s') (GAIfO: gaifo.py, drail_disc.py --state-only)."""
-    seen = "next_obs" if state_only else "actions"  # what D sees beside s
-    batch = rb.sample(args.batch_size)  # its env rewards are never used
-    with torch.no_grad():
-        rewards = gail_reward(disc(torch.cat([batch.obs, getattr(batch, seen)], -1)), args.reward_form)
-    metrics = agent.update(batch.obs, batch.actions, batch.next_obs, rewards, batch.terminations, prefix="losses/")
-    metrics.update({"reward/learned_mean": rewards.mean(), "reward/learned_std": rewards.std()})
-    if not update_disc:
-        return metrics
-    idx = torch.randint(0, len(expert["obs"]), (args.disc_batch_size,), device=expert["obs"].device)
-    policy = rb.sample(args.disc_batch_size, recent=args.disc_buffer_size)
-    expert_x = torch.cat([expert["obs"][idx], expert[seen][idx]], -1)
-    return metrics | disc.update(expert_x, torch.cat([policy.obs, getattr(policy, seen)], -1))
-# --- end shared: gail ---
-
-
 # --- shared: rile ---
 def rile_update(student: "SAC", trainer: "SAC", disc: nn.Module, rb: "ReplayBuffer", expert: dict, args,
                 state: dict, step: int) -> dict:
@@ -327,11 +296,13 @@ def rile_update(student: "SAC", trainer: "SAC", disc: nn.Module, rb: "ReplayBuff
     # (1) student: SAC on r_S = the current trainer's action on o_T = (s, a_S); with no trainer (the control), on v(D)
     batch = mix_expert(rb.sample(args.batch_size), expert, args.student_expert_fraction)
     if trainer is None:
-        r_student = discriminator_reward(disc, torch.cat([batch.obs, getattr(batch, seen)], -1), args.termination_remedy)
+        d_input = torch.cat([batch.obs, getattr(batch, seen)], -1)
+        r_student = discriminator_reward(disc, d_input, args.termination_remedy)
     else:
         obs_trainer = trainer_input(batch.obs, batch.actions, batch.next_obs, args.trainer_obs)
         r_student = student_reward(trainer.actor, obs_trainer, args.termination_remedy)
-    metrics = student.update(batch.obs, batch.actions, batch.next_obs, r_student, batch.terminations, prefix="losses/student_")
+    metrics = student.update(batch.obs, batch.actions, batch.next_obs, r_student, batch.terminations,
+                             prefix="losses/student_")
     metrics["reward/learned_mean"] = r_student.mean()
     if state["reward_only"]:
         return metrics
@@ -341,41 +312,24 @@ def rile_update(student: "SAC", trainer: "SAC", disc: nn.Module, rb: "ReplayBuff
         policy = rb.sample(args.disc_batch_size, recent=args.disc_buffer_size)
         metrics |= disc.update(torch.cat([expert["obs"][idx], expert[seen][idx]], -1),
                                torch.cat([policy.obs, getattr(policy, seen)], -1))
+    # (3) trainer: SAC on its recent transitions (o_T, a_T as stored, o_T'), r_T from the current discriminator, then
+    # the freeze test. A frozen trainer is only watched, every 10 steps, on a forked random stream (as if unwatched)
     frozen = state["frozen_at"] is not None
     if trainer is None or (frozen and (step % 10 or args.trainer_release_threshold == float("inf"))):
         return metrics
-    # (3) trainer: SAC on its recent transitions (o_T, a_T as stored, o_T'), r_T from the current discriminator. A frozen
-    # trainer is only watched, every 10 steps (its critics' loss, which may release it: freeze_test), with the random
-    # stream restored after it, so that the run is the same as with no watching until it is released
-    devices = [torch.cuda.current_device()] if expert["obs"].is_cuda else []
-    with torch.random.fork_rng(devices, enabled=frozen):
+    with torch.random.fork_rng([torch.cuda.current_device()] if rb.storage.is_cuda else [], enabled=frozen):
         idx = rb.indices(args.trainer_batch_size, recent=args.trainer_buffer_size)
         batch = mix_expert(rb.batch(idx), expert, args.trainer_expert_fraction, trainer, args.trainer_obs)
         obs_trainer, a_trainer = trainer_input(batch.obs, batch.actions, batch.next_obs, args.trainer_obs), batch.extra
-
-        def next_obs_trainer():  # o_T' = (s', s'') as the student went on, or (s', a'_S) with a fresh a'_S (choice 2)
-            if args.trainer_obs == "transition":
-                return torch.cat([batch.next_obs, successor_next_obs(rb, idx, batch)], -1)
-            return torch.cat([batch.next_obs, student.policy(batch.next_obs)[0]], -1)
+        next_obs_trainer = lambda: trainer_next_obs(student, rb, idx, batch, args.trainer_obs)  # o_T' (choice 2)
         with torch.no_grad():
             d = disc.prob(torch.cat([batch.obs, getattr(batch, seen)], -1))
             r_trainer = TRAINER_REWARDS[args.trainer_reward](d, a_trainer.squeeze(-1))
             o_next = next_obs_trainer()
-        if frozen:
-            with torch.no_grad():
-                loss, _, target_var = trainer.critic_loss(obs_trainer, a_trainer, o_next, r_trainer, batch.terminations)
-            metrics |= {"losses/trainer_qf_loss": loss, "losses/trainer_qf_target_var": target_var}
-        else:
-            metrics |= trainer.update(obs_trainer, a_trainer, o_next, r_trainer, batch.terminations, prefix="losses/trainer_")
+        transitions = (obs_trainer, a_trainer, o_next, r_trainer, batch.terminations)
+        metrics |= watch(trainer, *transitions) if frozen else trainer.update(*transitions, prefix="losses/trainer_")
         metrics["reward/trainer_reward_mean"] = r_trainer.mean()
-        if step % 10 == 0:  # the TD targets' own variance over a'_S and a'_T, a part of the TD loss no critic can remove:
-            # two more draws, with the random stream restored after them so that they change nothing else in the run
-            with torch.random.fork_rng(devices), torch.no_grad():
-                y1, y2 = (trainer.td_target(next_obs_trainer(), r_trainer, batch.terminations) for _ in range(2))
-            noise, prev = 0.5 * (y1 - y2).pow(2).mean(), state["target_noise_ema"]
-            state["target_noise_ema"] = torch.where(prev.isfinite(), torch.lerp(prev, noise, 0.1), noise)
-        freeze_test(metrics["losses/trainer_qf_loss"], metrics["losses/trainer_qf_target_var"], r_trainer.var(), args, state,
-                    step)
+        track_freeze(trainer, metrics, r_trainer, batch.terminations, next_obs_trainer, args, state, step)
     return metrics
 
 
@@ -423,7 +377,8 @@ def trainer_acts(trainer: "SAC", obs, action, next_obs, terminated: bool, absorb
     s_abs = absorbing_state(len(obs))
     indicated = (lambda s: np.append(s, 0.0)) if absorbing else (lambda s: s)  # env states: indicator 0
     sees = lambda s, a, s_next: np.concatenate([s, s_next if trainer_obs == "transition" else a])
-    a_trainer = trainer.actor.act(sees(indicated(obs), action, s_abs if absorbing and terminated else indicated(next_obs)))
+    s_next = s_abs if absorbing and terminated else indicated(next_obs)
+    a_trainer = trainer.actor.act(sees(indicated(obs), action, s_next))
     return a_trainer, trainer.actor.act(sees(s_abs, np.zeros_like(action), s_abs)) if absorbing and terminated else ()
 
 
@@ -434,6 +389,14 @@ def successor_next_obs(rb: "ReplayBuffer", idx, batch: "Batch"):
     following = rb.batch((idx + 1) % rb.capacity)
     continues = (following.obs == batch.next_obs).all(-1, keepdim=True) & ((idx + 1) % rb.capacity != rb.pos)[:, None]
     return torch.where(continues, following.next_obs, batch.next_obs)
+
+
+def trainer_next_obs(student: "SAC", rb: "ReplayBuffer", idx, batch: "Batch", trainer_obs: str):
+    """o_T' for the trainer's batch: (s', a'_S) with a'_S a fresh sample of the current student (choice 2), or (s', s'')
+    as the student went on with --trainer-obs transition."""
+    if trainer_obs == "transition":
+        return torch.cat([batch.next_obs, successor_next_obs(rb, idx, batch)], -1)
+    return torch.cat([batch.next_obs, student.policy(batch.next_obs)[0]], -1)
 
 
 def mix_expert(batch: "Batch", expert: dict, fraction: float, trainer: Optional["SAC"] = None, trainer_obs: str = ""):
@@ -452,6 +415,27 @@ def mix_expert(batch: "Batch", expert: dict, fraction: float, trainer: Optional[
     return batch
 
 
+def watch(trainer: "SAC", obs, actions, next_obs, rewards, terminations) -> dict:
+    """A frozen trainer's critic loss on D's current rewards, without an update (what may release it: freeze_test)."""
+    with torch.no_grad():
+        loss, _, target_var = trainer.critic_loss(obs, actions, next_obs, rewards, terminations)
+    return {"losses/trainer_qf_loss": loss, "losses/trainer_qf_target_var": target_var}
+
+
+def track_freeze(trainer: "SAC", metrics: dict, r_trainer, terminations, next_obs_trainer, args, state: dict,
+                 step: int) -> None:
+    """The freeze's bookkeeping after each trainer update (or watch): every 10 steps the TD targets' own variance over
+    a'_S and a'_T, a part of the TD loss no critic can remove, from two more draws on a forked random stream (so that
+    they change nothing else in the run); then freeze_test."""
+    if step % 10 == 0:
+        with torch.random.fork_rng([torch.cuda.current_device()] if r_trainer.is_cuda else []), torch.no_grad():
+            y1, y2 = (trainer.td_target(next_obs_trainer(), r_trainer, terminations) for _ in range(2))
+        noise, prev = 0.5 * (y1 - y2).pow(2).mean(), state["target_noise_ema"]
+        state["target_noise_ema"] = torch.where(prev.isfinite(), torch.lerp(prev, noise, 0.1), noise)
+    loss, target_var = metrics["losses/trainer_qf_loss"], metrics["losses/trainer_qf_target_var"]
+    freeze_test(loss, target_var, r_trainer.var(), args, state, step)
+
+
 def freeze_test(critic_loss, target_var, reward_var, args, state: dict, step: int) -> None:
     """Freeze the trainer "once its critic network converges" (the paper's appendix; its threshold, not its test).
     The statistic (--trainer-freeze-stat, see freeze_statistic) is a moving average (0.99) over updates (over the
@@ -463,7 +447,7 @@ def freeze_test(critic_loss, target_var, reward_var, args, state: dict, step: in
     training"). A frozen trainer is watched (rile_update): once its critics' statistic on D's current rewards passes
     --trainer-release-threshold, it has stopped fitting them (the student has moved where the fixed reward is
     wrong), and it learns again."""
-    ema = lambda name, x: torch.where(state[name].isfinite(), torch.lerp(state[name], x, 0.01), x)  # inf: no average yet
+    ema = lambda name, x: torch.where(state[name].isfinite(), torch.lerp(state[name], x, 0.01), x)  # inf: none yet
     for name, x in (("critic_loss_ema", critic_loss), ("target_var_ema", target_var), ("reward_var_ema", reward_var)):
         state[name] = ema(name, x)
     state["trainer_updates"] += state["frozen_at"] is None
@@ -474,7 +458,8 @@ def freeze_test(critic_loss, target_var, reward_var, args, state: dict, step: in
         if statistic > args.trainer_release_threshold:
             state["released_at"].append(step)
             state["frozen_at"] = state["below_since"] = None
-            print(f"trainer released at step {step} ({args.trainer_freeze_stat} critic loss {statistic:.4f})", flush=True)
+            print(f"trainer released at step {step} ({args.trainer_freeze_stat} critic loss {statistic:.4f})",
+                  flush=True)
         return
     if statistic >= args.trainer_freeze_threshold:
         state["below_since"] = None
@@ -518,9 +503,41 @@ def check_rile_args(args):
             raise SystemExit(f"error: --{name.replace('_', '-')} must lie in [0, 1]")
     for name in ("expert_action_noise", "student_expert_fraction", "trainer_expert_fraction"):
         if args.state_only and given[name] > 0:
-            raise SystemExit(f"error: --{name.replace('_', '-')} needs the expert's actions, which --state-only does not use")
+            raise SystemExit(f"error: --{name.replace('_', '-')} needs the expert's actions, which --state-only "
+                             "does not use")
     return args
 # --- end shared: rile ---
+
+
+# --- shared: gail ---
+def gail_reward(logits, form: str):
+    """The SAC reward from the discriminator's logit l (D = sigmoid(l)), computed stably."""
+    if form == "softplus":
+        return F.softplus(logits)  # -log(1 - D)
+    if form == "logit":
+        return logits  # log D - log(1 - D)
+    if form == "log-d":
+        return -F.softplus(-logits)  # log D
+    raise ValueError(f"unknown reward form '{form}'; choose softplus, logit or log-d")
+
+
+def gail_update(agent: "SAC", disc: nn.Module, rb: "ReplayBuffer", expert: dict, args, state_only: bool = False,
+                update_disc: bool = True) -> dict:
+    """One SAC update on rewards from the current discriminator, then (if update_disc) one discriminator update.
+    D scores pairs (s, a), or with `state_only` transitions (s, s') (GAIfO: gaifo.py, drail_disc.py --state-only)."""
+    seen = "next_obs" if state_only else "actions"  # what D sees beside s
+    batch = rb.sample(args.batch_size)  # its env rewards are never used
+    with torch.no_grad():
+        rewards = gail_reward(disc(torch.cat([batch.obs, getattr(batch, seen)], -1)), args.reward_form)
+    metrics = agent.update(batch.obs, batch.actions, batch.next_obs, rewards, batch.terminations, prefix="losses/")
+    metrics.update({"reward/learned_mean": rewards.mean(), "reward/learned_std": rewards.std()})
+    if not update_disc:
+        return metrics
+    idx = torch.randint(0, len(expert["obs"]), (args.disc_batch_size,), device=expert["obs"].device)
+    policy = rb.sample(args.disc_batch_size, recent=args.disc_buffer_size)
+    expert_x = torch.cat([expert["obs"][idx], expert[seen][idx]], -1)
+    return metrics | disc.update(expert_x, torch.cat([policy.obs, getattr(policy, seen)], -1))
+# --- end shared: gail ---
 
 
 # --- shared: absorbing ---
@@ -571,16 +588,13 @@ def make_env(env_id: str, seed: int, render_mode: Optional[str] = None) -> gym.E
 
 
 def seed_everything(seed: int, torch_deterministic: bool = True) -> None:
-    random.seed(seed)
-    np.random.seed(seed)
-    torch.manual_seed(seed)
+    random.seed(seed), np.random.seed(seed), torch.manual_seed(seed)
     torch.backends.cudnn.deterministic = torch_deterministic
 # --- end shared: env ---
 
 
 # --- shared: actor ---
-LOG_STD_MAX = 2
-LOG_STD_MIN = -5
+LOG_STD_MIN, LOG_STD_MAX = -5, 2
 
 
 class Actor(nn.Module):
@@ -589,7 +603,8 @@ class Actor(nn.Module):
 
     def __init__(self, obs_dim: int, act_dim: int, action_low, action_high, hidden_dim: int = 256):
         super().__init__()
-        self.net = nn.Sequential(nn.Linear(obs_dim, hidden_dim), nn.ReLU(), nn.Linear(hidden_dim, hidden_dim), nn.ReLU())
+        self.net = nn.Sequential(nn.Linear(obs_dim, hidden_dim), nn.ReLU(), nn.Linear(hidden_dim, hidden_dim),
+                                 nn.ReLU())
         self.fc_mean, self.fc_logstd = nn.Linear(hidden_dim, act_dim), nn.Linear(hidden_dim, act_dim)
         low, high = torch.as_tensor(action_low, dtype=torch.float32), torch.as_tensor(action_high, dtype=torch.float32)
         self.register_buffer("action_scale", (high - low) / 2.0)
@@ -637,8 +652,7 @@ def actor_file(actor: Actor, env_id: str, **extra) -> dict:
 
 # --- shared: critic ---
 class TwinQ(nn.Module):
-    """Two Q-networks as one module: every weight has a leading dimension of 2, so each layer of both critics
-    is one batched matmul. forward returns Q-values of shape (2, batch)."""
+    """Two Q-networks as one module, each weight with a leading dimension of 2 (a batched matmul); Q of shape (2, B)."""
 
     def __init__(self, obs_dim: int, act_dim: int, hidden_dim: int = 256, num_q: int = 2):
         super().__init__()
@@ -661,10 +675,9 @@ class TwinQ(nn.Module):
 
 # --- shared: sac ---
 class SAC:
-    """Actor, twin critics, target critics and the temperature, with their optimisers; one `update` per env
-    step. absorbing=True (DAC's absorbing states, `--termination-remedy absorbing`): observations carry a last
-    indicator column, 1 at the absorbing state that follows a termination. The actor never sees it; at the
-    absorbing state the only action is zero, so it has no entropy term and no actor or temperature loss."""
+    """Actor, twin critics, target critics and the temperature, with their optimisers; one `update` per env step.
+    absorbing=True (DAC's absorbing states): observations carry a last indicator column, 1 at the absorbing state
+    after a termination, which the actor never sees; there the only action is zero: no entropy, actor or alpha loss."""
 
     def __init__(self, obs_dim, act_dim, action_low, action_high, args, device, absorbing: bool = False):
         self.absorbing, self.gamma, self.tau, self.target_entropy = absorbing, args.gamma, args.tau, -float(act_dim)
@@ -675,7 +688,8 @@ class SAC:
         self.log_alpha = torch.tensor(float(np.log(args.alpha)), device=device, requires_grad=args.autotune)
         self.q_optimizer = torch.optim.Adam(self.qf.parameters(), lr=args.q_lr, fused=True)
         self.actor_optimizer = torch.optim.Adam(self.actor.parameters(), lr=args.policy_lr, fused=True)
-        self.alpha_optimizer = torch.optim.Adam([self.log_alpha], lr=args.policy_lr, fused=True) if args.autotune else None
+        self.alpha_optimizer = (torch.optim.Adam([self.log_alpha], lr=args.policy_lr, fused=True) if args.autotune
+                                else None)
 
     def policy(self, obs):
         """a ~ pi(.|s) and log pi(a|s); with absorbing states, a = 0 and log pi = 0 where s is absorbing."""
@@ -715,7 +729,6 @@ class SAC:
         self.q_optimizer.zero_grad(set_to_none=False)
         qf_loss.backward()
         self.q_optimizer.step()
-
         actor_loss, alpha_loss, entropy = self.actor_loss(obs)
         self.actor_optimizer.zero_grad(set_to_none=False)
         if self.alpha_optimizer is not None:
@@ -831,8 +844,9 @@ def load_demonstrations(path: str, env: gym.Env, num_trajs: Optional[int] = None
             fail(f"hold {len(data['episode_lengths'])} episodes, fewer than --num-expert-trajs {num_trajs}",
                  "pass a smaller --num-expert-trajs")
         end = int(data["episode_starts"][num_trajs - 1] + data["episode_lengths"][num_trajs - 1])
-        data |= {k: data[k][: num_trajs if k.startswith("episode_") else end] for k in (*DEMO_KEYS, "actions") if k in data}
-    if "random_return" not in meta:  # files from before issue 31: measured now (`demos.py info --add-random-return`)
+        data |= {k: data[k][: num_trajs if k.startswith("episode_") else end]
+                 for k in (*DEMO_KEYS, "actions") if k in data}
+    if "random_return" not in meta:  # older files: measured now (`demos.py info --add-random-return` stores it)
         meta["random_return"] = random_return(env_id)
         print(f"{path}: no random-policy return in its metadata; uniform actions return {meta['random_return']:.1f}")
     return data | {"metadata": meta}
@@ -842,8 +856,7 @@ def load_demonstrations(path: str, env: gym.Env, num_trajs: Optional[int] = None
 # --- shared: expert data ---
 def expert_tensors(demos: dict, seed: int, device, state_noise: float = 0.0, action_noise: float = 0.0,
                    action_low=None, action_high=None) -> dict:
-    """The expert transitions as tensors, with the noise of the noise-robustness experiment added once (actions
-    clipped to the box; no "actions" from state-only demonstrations)."""
+    """The expert transitions as tensors, the noise-robustness experiment's noise added once (actions in the box)."""
     rng = np.random.default_rng(seed + 1)
     obs, next_obs, actions = demos["observations"], demos["next_observations"], demos.get("actions")
     if state_noise > 0:
@@ -859,8 +872,7 @@ def expert_tensors(demos: dict, seed: int, device, state_noise: float = 0.0, act
 
 # --- shared: evaluation ---
 def evaluate(act, env_id: str, num_episodes: int, seed: int, capture_video_dir: Optional[str] = None) -> list:
-    """Returns of the deterministic policy on its own env; episode i starts from reset(seed=seed + i), so
-    every evaluation of a run sees the same start states."""
+    """Returns of the deterministic policy on its own env, episode i from reset(seed=seed + i): the same starts."""
     env = make_env(env_id, seed, render_mode="rgb_array" if capture_video_dir else None)
     if capture_video_dir:
         env = gym.wrappers.RecordVideo(env, capture_video_dir, episode_trigger=lambda ep: ep == 0, disable_logger=True)
@@ -883,22 +895,21 @@ def random_return(env_id: str, num_episodes: int = 10, seed: int = 100_000) -> f
 
 
 def normalized_score(ret: float, random: Optional[float], expert: Optional[float]) -> Optional[float]:
-    """(R - R_random) / (R_expert - R_random): 0 for random actions, 1 for the demonstrations (D4RL's convention);
-    None where either is unknown or the expert is no better than random."""
+    """(R - R_random) / (R_expert - R_random), D4RL's: 0 random, 1 the demonstrations; None if unknown or not above."""
     return (ret - random) / (expert - random) if random is not None and expert is not None and expert > random else None
 # --- end shared: evaluation ---
 
 
 # --- shared: run ---
 class Run:
-    """The run's directory (config.json, TensorBoard, results.json with `extra` added), an evaluation every --eval-freq
-    steps, and its `Checkpoints` (every `checkpoint_freq` steps, 0: none; on Ctrl-C / SIGTERM; --resume)."""
+    """The run's directory (config.json, TensorBoard, results.json with `extra`), evaluations, its `Checkpoints`."""
 
-    def __init__(self, args, checkpoint: Optional[dict], stateful: dict, expert_return: Optional[float], device,
-                 checkpoint_freq: int = 0, random_return: Optional[float] = None):
+    def __init__(self, args, checkpoint: Optional[dict], stateful: dict, demos: Optional[dict], device,
+                 checkpoint_freq: int = 0):
         self.args, self.extra, self.evals, self.start_step, self.sps = args, {}, [], 0, 0.0
-        self.expert_return = expert_return if expert_return is not None and np.isfinite(expert_return) else None
-        self.random_return = random_return  # the normalized score's 0 (the expert's return is its 1)
+        returns = demos["episode_returns"] if demos else np.array([np.nan])  # the normalized score's 1 (random's: 0)
+        self.expert_return = float(returns.mean()) if np.isfinite(returns.mean()) else None
+        self.random_return = demos["metadata"]["random_return"] if demos else None
         self.name = checkpoint["run_name"] if checkpoint else args.run_name or \
             f"{args.env_id}__{args.exp_name}__{args.seed}__{int(time.time())}"
         self.dir = os.path.join("runs", self.name)
@@ -907,7 +918,10 @@ class Run:
         self.writer, self.machine = tensorboard(args, self.name, self.dir), machine(device)
         self.start_time = time.time()  # time.time() - start_time: the run's wall time (a resumed run's included)
         self.checkpoints = Checkpoints(self, stateful, checkpoint_freq, checkpoint, device)
-        self.tick = (self.start_step, time.perf_counter())  # where SPS counts from
+        self.tick, self.shown, self.tty = (self.start_step, time.perf_counter()), 0.0, sys.stdout.isatty()
+        expert = f"{len(returns)} demonstration episodes, return {returns.mean():.1f} | " if demos else ""
+        print(f"{'resumed ' * bool(checkpoint)}{self.dir} at step {self.start_step} of {args.total_timesteps} | "
+              f"{args.env_id} | {expert}{device}, threads {torch.get_num_threads()}", flush=True)
 
     def log(self, metrics: dict, step: int) -> None:
         for name, value in metrics.items():
@@ -916,23 +930,35 @@ class Run:
 
     def end_step(self, step: int, act) -> None:
         """After env step `step` (counted from 1): an evaluation every --eval-freq steps, a checkpoint when due."""
+        self.sps = (step - self.tick[0]) / (time.perf_counter() - self.tick[1])  # since the last evaluation
         if step % self.args.eval_freq == 0 or step == self.args.total_timesteps:
-            self.sps = (step - self.tick[0]) / (time.perf_counter() - self.tick[1])  # since the last evaluation
             self.evaluate(step, act)
             self.tick = (step, time.perf_counter())
+        elif self.tty and time.perf_counter() - self.shown > 10:
+            self.show(step)
         self.checkpoints.end_step(step)
 
     def evaluate(self, step: int, act) -> None:
-        """--eval-episodes of the deterministic policy: logged, written to results.json, printed in one line."""
+        """--eval-episodes of the deterministic policy: logged, written to results.json, shown."""
         returns = evaluate(act, self.args.env_id, self.args.eval_episodes, seed=self.args.seed + 100_000)
         mean, std = float(np.mean(returns)), float(np.std(returns))
         normalized = normalized_score(mean, self.random_return, self.expert_return)
         self.evals.append({"step": step, "mean": mean, "std": std, "normalized": normalized})
         self.log({"eval/return": mean, "eval/normalized_return": normalized, "charts/SPS": self.sps}, step)
         self.write_results(finished=False)
-        versus = f" = {normalized:.2f} normalized (random 0, expert 1)" if normalized is not None else ""
-        print(f"step {step}/{self.args.total_timesteps} | {self.sps:.0f} SPS | {(time.time() - self.start_time) / 60:.0f} "
-              f"min | eval return {mean:.1f} +- {std:.1f}{versus}", flush=True)
+        self.show(step)
+
+    def show(self, step: int) -> None:
+        """One line: steps, SPS, minutes so far and left, the latest evaluation (on a terminal, rewritten in place)."""
+        total, last = self.args.total_timesteps, self.evals[-1] if self.evals else None
+        line = (f"step {step}/{total} | {self.sps:.0f} SPS | {(time.time() - self.start_time) / 60:.0f} min, "
+                f"{(total - step) / max(self.sps, 1e-6) / 60:.0f} min left")
+        if last:
+            score = f" = {last['normalized']:.2f} normalized" if last["normalized"] is not None else ""
+            line += f" | eval at {last['step']}: return {last['mean']:.1f} +- {last['std']:.1f}{score}"
+        stays = not self.tty or (last is not None and last["step"] == step)
+        print(f"\r{line}\033[K" if self.tty else line, end="\n" if stays else "", flush=True)
+        self.shown = time.perf_counter()
 
     def write_results(self, finished: bool) -> None:
         """results.json: the run's config, its evaluation curve and where it ran (format in docs/sweeps.md)."""
@@ -941,7 +967,8 @@ class Run:
             "algo": self.args.exp_name, "env_id": self.args.env_id, "seed": self.args.seed, "finished": finished,
             "evals": self.evals, "final_return": final.get("mean"), "final_normalized_return": final.get("normalized"),
             "random_return": self.random_return, "expert_return": self.expert_return, "sps": self.sps,
-            "wall_time_s": time.time() - self.start_time, "machine": self.machine, "config": asdict(self.args)} | self.extra)
+            "wall_time_s": time.time() - self.start_time, "machine": self.machine, "config": asdict(self.args),
+        } | self.extra)
 
     def finish(self, act, models: dict) -> None:
         """The last checkpoint and results.json, the models (unless --no-save-model), a video (--capture-video)."""
@@ -951,7 +978,7 @@ class Run:
         for filename, content in models.items() if self.args.save_model else ():
             save_file(os.path.join(self.dir, filename), content)
         if self.args.capture_video:
-            evaluate(act, self.args.env_id, 1, self.args.seed + 100_000, capture_video_dir=os.path.join(self.dir, "videos"))
+            evaluate(act, self.args.env_id, 1, self.args.seed + 100_000, os.path.join(self.dir, "videos"))
         self.writer.close()
         print(f"done: {self.args.total_timesteps} steps in {(time.time() - self.start_time) / 60:.1f} min: {self.dir}")
 
@@ -970,8 +997,10 @@ class Checkpoints:
                     obj.load_state_dict(checkpoint[name])
             run.evals, run.start_step = checkpoint["evals"], checkpoint["step"]
             run.start_time -= checkpoint["wall_time"]
-            set_rng_state(checkpoint["rng"])
-            print(f"resumed {run.dir} at step {run.start_step}")
+            rng = checkpoint["rng"]
+            random.setstate(rng["python"]), np.random.set_state(rng["numpy"]), torch.set_rng_state(rng["torch"])
+            if rng["cuda"] is not None and torch.cuda.is_available():
+                torch.cuda.set_rng_state_all(rng["cuda"])
         signal.signal(signal.SIGINT, self.on_signal), signal.signal(signal.SIGTERM, self.on_signal)
 
     def on_signal(self, signum, frame):
@@ -995,7 +1024,9 @@ class Checkpoints:
     def save(self, step: int) -> None:
         run, state = self.run, {name: dict(obj) if isinstance(obj, dict) else obj.state_dict()
                                 for name, obj in self.stateful.items()}
-        save_file(os.path.join(run.dir, "checkpoint.pt"), state | dict(step=step, evals=run.evals, rng=rng_state(),
+        rng = {"python": random.getstate(), "numpy": np.random.get_state(), "torch": torch.get_rng_state(),
+               "cuda": torch.cuda.get_rng_state_all() if torch.cuda.is_available() else None}
+        save_file(os.path.join(run.dir, "checkpoint.pt"), state | dict(step=step, evals=run.evals, rng=rng,
                   wall_time=time.time() - run.start_time, config=asdict(run.args), run_name=run.name))
 
 
@@ -1007,12 +1038,13 @@ def tensorboard(args, name: str, run_dir: str):
                    config=vars(args), name=name, id=name, resume="allow", save_code=True)
     from torch.utils.tensorboard import SummaryWriter
     writer = SummaryWriter(run_dir)
-    writer.add_text("hyperparameters", "|param|value|\n|-|-|\n" + "\n".join(f"|{k}|{v}|" for k, v in asdict(args).items()))
+    table = "\n".join(f"|{k}|{v}|" for k, v in asdict(args).items())
+    writer.add_text("hyperparameters", "|param|value|\n|-|-|\n" + table)
     return writer
 
 
 def save_file(path: str, obj) -> None:
-    """torch.save for .pt files, JSON otherwise, through a temporary file: a run killed while saving keeps the old one."""
+    """torch.save for .pt files, JSON otherwise, through a temporary file: a run killed while saving keeps the old."""
     if path.endswith(".pt"):
         torch.save(obj, path + ".tmp")
     else:
@@ -1021,35 +1053,20 @@ def save_file(path: str, obj) -> None:
     os.replace(path + ".tmp", path)
 
 
-def rng_state() -> dict:
-    return {"python": random.getstate(), "numpy": np.random.get_state(), "torch": torch.get_rng_state(),
-            "cuda": torch.cuda.get_rng_state_all() if torch.cuda.is_available() else None}
-
-
-def set_rng_state(rng: dict) -> None:
-    random.setstate(rng["python"]), np.random.set_state(rng["numpy"]), torch.set_rng_state(rng["torch"])
-    if rng["cuda"] is not None and torch.cuda.is_available():
-        torch.cuda.set_rng_state_all(rng["cuda"])
-
-
 def machine(device) -> dict:
-    """What decides a run's numbers besides its config: versions, CPU, threads, device, and the code's git commit
-    ("-dirty" with uncommitted changes; None outside a git checkout)."""
-    from importlib.metadata import version
-    from shutil import which
-    from subprocess import run
+    """What decides a run's numbers besides its config: versions, CPU, threads, device, the code's commit ("-dirty")."""
     cpuinfo = open("/proc/cpuinfo").read().splitlines() if os.path.exists("/proc/cpuinfo") else []
-    cpu = next((line.split(":", 1)[1].strip() for line in cpuinfo if line.startswith("model name")), platform.processor())
-    git = run(["git", "describe", "--always", "--dirty", "--abbrev=12"], capture_output=True, text=True,
-              cwd=os.path.dirname(os.path.abspath(__file__))).stdout.strip() if which("git") else ""
+    models = (line.split(":", 1)[1].strip() for line in cpuinfo if line.startswith("model name"))
+    cpu = next(models, platform.processor())
+    git = subprocess.run(["git", "describe", "--always", "--dirty", "--abbrev=12"], capture_output=True, text=True,
+                         cwd=os.path.dirname(os.path.abspath(__file__))).stdout.strip() if shutil.which("git") else ""
     return {"host": platform.node(), "cpu": cpu, "cpu_capability": torch.backends.cpu.get_cpu_capability(),
             "threads": torch.get_num_threads(), "device": str(device), "python": platform.python_version(),
-            **{name: version(name) for name in ("torch", "numpy", "gymnasium", "mujoco")}, "git": git or None}
+            **{name: metadata.version(name) for name in ("torch", "numpy", "gymnasium", "mujoco")}, "git": git or None}
 
 
 def resume(args, keep=("total_timesteps", "cuda", "threads")):
-    """--resume: the saved checkpoint, and the saved run's config with the fields in `keep` taken from the command
-    line where given there."""
+    """--resume: the saved checkpoint, and its run's config with the fields in `keep` from the command line if given."""
     path = os.path.join(args.resume, "checkpoint.pt") if os.path.isdir(args.resume) else args.resume
     if not os.path.isfile(path):
         raise SystemExit(f"error: no checkpoint at '{path}'; pass --resume runs/<run> of a run that saved one")
@@ -1075,7 +1092,8 @@ if __name__ == "__main__":
     env = make_env(args.env_id, args.seed)
     obs_dim, act_dim = env.observation_space.shape[0], env.action_space.shape[0]
     low, high = env.action_space.low, env.action_space.high
-    demos = load_demonstrations(args.expert_path or f"experts/{args.env_id}.npz", env, args.num_expert_trajs, args.state_only)
+    demos = load_demonstrations(args.expert_path or f"experts/{args.env_id}.npz", env, args.num_expert_trajs,
+                                args.state_only)
     expert = expert_tensors(demos, args.seed, device, args.expert_state_noise, args.expert_action_noise, low, high)
     absorbing = args.termination_remedy == "absorbing"
     if absorbing:
@@ -1104,8 +1122,7 @@ if __name__ == "__main__":
                 "rile": state}
     if not args.run_name:  # the two variants' runs apart
         args.run_name = f"{args.env_id}__{args.exp_name}-{args.student_reward}__{args.seed}__{int(time.time())}"
-    run = Run(args, checkpoint, stateful, float(demos["episode_returns"].mean()), device,
-              checkpoint_freq=args.checkpoint_freq, random_return=demos["metadata"]["random_return"])
+    run = Run(args, checkpoint, stateful, demos, device, checkpoint_freq=args.checkpoint_freq)
 
     # TRY NOT TO MODIFY: start the game
     obs, _ = env.reset(seed=args.seed + run.start_step)
@@ -1119,7 +1136,7 @@ if __name__ == "__main__":
         if rile_mode:
             a_trainer, a_trainer_absorbing = trainer_acts(trainer, obs, action, next_obs, terminated, absorbing,
                                                           args.trainer_obs)
-        store(rb, obs, action, next_obs, reward, terminated, absorbing, a_trainer, a_trainer_absorbing)  # env reward: unused
+        store(rb, obs, action, next_obs, reward, terminated, absorbing, a_trainer, a_trainer_absorbing)  # reward unused
         obs = next_obs
         if terminated or truncated:
             episode = info["episode"]
@@ -1133,7 +1150,7 @@ if __name__ == "__main__":
             else:
                 metrics = gail_update(agent, disc, rb, expert, args, state_only=args.state_only,
                                       update_disc=global_step % args.disc_update_every == 0)
-            if global_step % 1000 == 0:  # the same names in both variants: the student's SAC metrics as losses/student_*
+            if global_step % 1000 == 0:  # the same names in both variants: the student's SAC as losses/student_*
                 run.log({name if rile_mode or "disc" in name else name.replace("losses/", "losses/student_"): value
                          for name, value in metrics.items()
                          if name not in ("reward/learned_std", "reward/trainer_reward_mean")},

@@ -1,6 +1,6 @@
 """Soft Actor-Critic experts for the MuJoCo tasks, and the demonstrations the imitation scripts learn from.
 
-Paper: "Soft Actor-Critic Algorithms and Applications", Haarnoja et al. 2018, https://arxiv.org/abs/1812.05905
+Paper: Haarnoja et al., "Soft Actor-Critic Algorithms and Applications", 2018, https://arxiv.org/abs/1812.05905
 
 SAC learns a stochastic tanh-Gaussian policy and twin Q-functions off-policy, maximising return plus
 entropy; the entropy temperature alpha is tuned so that the policy's entropy tracks -|A|. This script
@@ -14,47 +14,38 @@ markers; tests/test_shared_blocks.py keeps the copies identical). What only this
 first: the fast update and acting paths, loading an actor, and recording demonstrations.
 
 Implementation choices and deviations
-1. Actor and critic are updated once per env step (the original SAC and SB3 cadence), not CleanRL's
-   "policy every 2 steps, twice". One learning rate (3e-4) for actor, critics and alpha, as in the
-   RILe paper's table; `--q-lr` changes the critics'.
-2. The twin critics are one module whose weights carry a leading dimension of 2 (batched matmuls):
-   one kernel per layer for both critics. The actor loss reads the critics through detached weights,
-   so no gradient is computed for them there.
-3. The replay buffer is one preallocated float tensor, one row per transition
-   [obs | action | next_obs | reward | terminated]: adding is one copy, sampling is one gather.
-   Only `terminated` is stored for bootstrapping; time-limit truncations keep bootstrapping.
-4. log pi of the squashed Gaussian uses the exact identity log(1 - tanh(u)^2) = 2(log 2 - u - softplus(-2u))
-   instead of CleanRL's log(1 - tanh(u)^2 + 1e-6): finite and exact at the action bounds.
-5. Speed flags: `--compile` (torch.compile of the update; a modest gain on CPU, large on GPU),
-   `--cudagraphs` (GPU only: the whole update, optimiser steps included, and the acting forward pass
-   are captured once in CUDA graphs and replayed), `--threads` (torch intra-op threads; default 2, the
-   cores of the reference machine: 2 threads gave ~1.6x the updates/s of 1 there; see README).
-   On this CPU torch.compile gave no reliable gain (0.75x-1.2x of eager), so it is off by default (README).
-6. Resume (`--resume runs/<run>`) restores networks, optimisers, temperature, replay buffer, step
-   counter, RNG states and the evaluation history. The training episode in progress when the
-   checkpoint was written is cut: the resumed run starts a new episode from a reset seeded by
-   (seed, step). A resumed run is therefore deterministic but not bit-identical to an uninterrupted one.
-   A checkpoint saved without its replay buffer (to move it between machines) resumes too: the current
-   policy refills the buffer for `--learning-starts` steps before updates resume.
-7. Demonstrations are the first `--num-demos` episodes of the deterministic policy on resets seeded
-   `--demo-seed + i`; none is filtered out, unless `--full-episodes-only` discards the episodes that
-   end before the time limit. The metadata says which, and lists every episode tried.
-8. Beside results.json the run keeps `actor_best.pt` (the actor of the best evaluation so far: experts
-   are picked by it) and writes `actor.pt` with every checkpoint.
+1. Actor and critic are updated once per env step (the original SAC and SB3 cadence), not CleanRL's "policy every
+   2 steps, twice". One learning rate (3e-4) for actor, critics and alpha, the RILe paper's; `--q-lr` sets the critics'.
+2. The twin critics are one module whose weights carry a leading dimension of 2 (batched matmuls, one kernel per
+   layer for both); the actor loss reads them through detached weights, so computes no gradient for them.
+3. The replay buffer is one preallocated float tensor, a row [obs | action | next_obs | reward | terminated] per
+   transition; only `terminated` stops bootstrapping (time-limit truncations keep it).
+4. log pi of the squashed Gaussian uses log(1 - tanh(u)^2) = 2(log 2 - u - softplus(-2u)), exact and finite at
+   the action bounds, instead of CleanRL's log(1 - tanh(u)^2 + 1e-6).
+5. Speed flags: `--compile` (torch.compile of the update; off by default), `--cudagraphs` (GPU only: the whole
+   update, optimiser steps included, and the acting step replayed from CUDA graphs), `--threads` (default 2).
+6. `--resume runs/<run>` restores networks, optimisers, temperature, replay buffer, step, RNG states and evaluations;
+   the episode in progress is cut (a new one starts), so a resumed run is deterministic but not bit-identical.
+7. Demonstrations: the first `--num-demos` episodes of the deterministic policy on resets seeded `--demo-seed + i`,
+   none filtered unless `--full-episodes-only` drops those ending before the time limit (metadata lists all tried).
+8. Beside results.json the run keeps `actor_best.pt` (the actor of the best evaluation so far: experts are picked
+   by it) and writes `actor.pt` with every checkpoint.
 
-Logged metrics: charts/episodic_return, charts/episodic_length, charts/SPS, eval/return,
-eval/return_std, losses/qf_loss, losses/qf_values, losses/actor_loss, losses/alpha, losses/alpha_loss,
-losses/entropy.
+Logged metrics: charts/{episodic_return,episodic_length,SPS}, eval/{return,return_std,normalized_return},
+losses/{qf_loss,qf_values,qf_target_var,actor_loss,alpha,alpha_loss,entropy}. Details: docs/expert.md
 """
 
 import json
 import os
 import platform
 import random
+import shutil
 import signal
+import subprocess
 import sys
 import time
 from dataclasses import asdict, dataclass, fields, replace
+from importlib import metadata
 from typing import NamedTuple, Optional
 
 import gymnasium as gym
@@ -248,7 +239,8 @@ def record_demonstrations(act, env_id: str, num_episodes: int, seed: int, full_e
             lengths.append(len(episode["rewards"]))
             returns.append(ep_return)
     env.close()
-    demos = {k: np.asarray(v, dtype=bool if k in ("terminations", "truncations") else np.float32) for k, v in buf.items()}
+    demos = {k: np.asarray(v, dtype=bool if k in ("terminations", "truncations") else np.float32)
+             for k, v in buf.items()}
     demos.update(episode_starts=np.asarray(starts, dtype=np.int64), episode_lengths=np.asarray(lengths, dtype=np.int64),
                  episode_returns=np.asarray(returns, dtype=np.float64))
     return demos, tried
@@ -314,16 +306,13 @@ def make_env(env_id: str, seed: int, render_mode: Optional[str] = None) -> gym.E
 
 
 def seed_everything(seed: int, torch_deterministic: bool = True) -> None:
-    random.seed(seed)
-    np.random.seed(seed)
-    torch.manual_seed(seed)
+    random.seed(seed), np.random.seed(seed), torch.manual_seed(seed)
     torch.backends.cudnn.deterministic = torch_deterministic
 # --- end shared: env ---
 
 
 # --- shared: actor ---
-LOG_STD_MAX = 2
-LOG_STD_MIN = -5
+LOG_STD_MIN, LOG_STD_MAX = -5, 2
 
 
 class Actor(nn.Module):
@@ -332,7 +321,8 @@ class Actor(nn.Module):
 
     def __init__(self, obs_dim: int, act_dim: int, action_low, action_high, hidden_dim: int = 256):
         super().__init__()
-        self.net = nn.Sequential(nn.Linear(obs_dim, hidden_dim), nn.ReLU(), nn.Linear(hidden_dim, hidden_dim), nn.ReLU())
+        self.net = nn.Sequential(nn.Linear(obs_dim, hidden_dim), nn.ReLU(), nn.Linear(hidden_dim, hidden_dim),
+                                 nn.ReLU())
         self.fc_mean, self.fc_logstd = nn.Linear(hidden_dim, act_dim), nn.Linear(hidden_dim, act_dim)
         low, high = torch.as_tensor(action_low, dtype=torch.float32), torch.as_tensor(action_high, dtype=torch.float32)
         self.register_buffer("action_scale", (high - low) / 2.0)
@@ -380,8 +370,7 @@ def actor_file(actor: Actor, env_id: str, **extra) -> dict:
 
 # --- shared: critic ---
 class TwinQ(nn.Module):
-    """Two Q-networks as one module: every weight has a leading dimension of 2, so each layer of both critics
-    is one batched matmul. forward returns Q-values of shape (2, batch)."""
+    """Two Q-networks as one module, each weight with a leading dimension of 2 (a batched matmul); Q of shape (2, B)."""
 
     def __init__(self, obs_dim: int, act_dim: int, hidden_dim: int = 256, num_q: int = 2):
         super().__init__()
@@ -404,10 +393,9 @@ class TwinQ(nn.Module):
 
 # --- shared: sac ---
 class SAC:
-    """Actor, twin critics, target critics and the temperature, with their optimisers; one `update` per env
-    step. absorbing=True (DAC's absorbing states, `--termination-remedy absorbing`): observations carry a last
-    indicator column, 1 at the absorbing state that follows a termination. The actor never sees it; at the
-    absorbing state the only action is zero, so it has no entropy term and no actor or temperature loss."""
+    """Actor, twin critics, target critics and the temperature, with their optimisers; one `update` per env step.
+    absorbing=True (DAC's absorbing states): observations carry a last indicator column, 1 at the absorbing state
+    after a termination, which the actor never sees; there the only action is zero: no entropy, actor or alpha loss."""
 
     def __init__(self, obs_dim, act_dim, action_low, action_high, args, device, absorbing: bool = False):
         self.absorbing, self.gamma, self.tau, self.target_entropy = absorbing, args.gamma, args.tau, -float(act_dim)
@@ -418,7 +406,8 @@ class SAC:
         self.log_alpha = torch.tensor(float(np.log(args.alpha)), device=device, requires_grad=args.autotune)
         self.q_optimizer = torch.optim.Adam(self.qf.parameters(), lr=args.q_lr, fused=True)
         self.actor_optimizer = torch.optim.Adam(self.actor.parameters(), lr=args.policy_lr, fused=True)
-        self.alpha_optimizer = torch.optim.Adam([self.log_alpha], lr=args.policy_lr, fused=True) if args.autotune else None
+        self.alpha_optimizer = (torch.optim.Adam([self.log_alpha], lr=args.policy_lr, fused=True) if args.autotune
+                                else None)
 
     def policy(self, obs):
         """a ~ pi(.|s) and log pi(a|s); with absorbing states, a = 0 and log pi = 0 where s is absorbing."""
@@ -458,7 +447,6 @@ class SAC:
         self.q_optimizer.zero_grad(set_to_none=False)
         qf_loss.backward()
         self.q_optimizer.step()
-
         actor_loss, alpha_loss, entropy = self.actor_loss(obs)
         self.actor_optimizer.zero_grad(set_to_none=False)
         if self.alpha_optimizer is not None:
@@ -574,8 +562,9 @@ def load_demonstrations(path: str, env: gym.Env, num_trajs: Optional[int] = None
             fail(f"hold {len(data['episode_lengths'])} episodes, fewer than --num-expert-trajs {num_trajs}",
                  "pass a smaller --num-expert-trajs")
         end = int(data["episode_starts"][num_trajs - 1] + data["episode_lengths"][num_trajs - 1])
-        data |= {k: data[k][: num_trajs if k.startswith("episode_") else end] for k in (*DEMO_KEYS, "actions") if k in data}
-    if "random_return" not in meta:  # files from before issue 31: measured now (`demos.py info --add-random-return`)
+        data |= {k: data[k][: num_trajs if k.startswith("episode_") else end]
+                 for k in (*DEMO_KEYS, "actions") if k in data}
+    if "random_return" not in meta:  # older files: measured now (`demos.py info --add-random-return` stores it)
         meta["random_return"] = random_return(env_id)
         print(f"{path}: no random-policy return in its metadata; uniform actions return {meta['random_return']:.1f}")
     return data | {"metadata": meta}
@@ -584,8 +573,7 @@ def load_demonstrations(path: str, env: gym.Env, num_trajs: Optional[int] = None
 
 # --- shared: evaluation ---
 def evaluate(act, env_id: str, num_episodes: int, seed: int, capture_video_dir: Optional[str] = None) -> list:
-    """Returns of the deterministic policy on its own env; episode i starts from reset(seed=seed + i), so
-    every evaluation of a run sees the same start states."""
+    """Returns of the deterministic policy on its own env, episode i from reset(seed=seed + i): the same starts."""
     env = make_env(env_id, seed, render_mode="rgb_array" if capture_video_dir else None)
     if capture_video_dir:
         env = gym.wrappers.RecordVideo(env, capture_video_dir, episode_trigger=lambda ep: ep == 0, disable_logger=True)
@@ -608,22 +596,21 @@ def random_return(env_id: str, num_episodes: int = 10, seed: int = 100_000) -> f
 
 
 def normalized_score(ret: float, random: Optional[float], expert: Optional[float]) -> Optional[float]:
-    """(R - R_random) / (R_expert - R_random): 0 for random actions, 1 for the demonstrations (D4RL's convention);
-    None where either is unknown or the expert is no better than random."""
+    """(R - R_random) / (R_expert - R_random), D4RL's: 0 random, 1 the demonstrations; None if unknown or not above."""
     return (ret - random) / (expert - random) if random is not None and expert is not None and expert > random else None
 # --- end shared: evaluation ---
 
 
 # --- shared: run ---
 class Run:
-    """The run's directory (config.json, TensorBoard, results.json with `extra` added), an evaluation every --eval-freq
-    steps, and its `Checkpoints` (every `checkpoint_freq` steps, 0: none; on Ctrl-C / SIGTERM; --resume)."""
+    """The run's directory (config.json, TensorBoard, results.json with `extra`), evaluations, its `Checkpoints`."""
 
-    def __init__(self, args, checkpoint: Optional[dict], stateful: dict, expert_return: Optional[float], device,
-                 checkpoint_freq: int = 0, random_return: Optional[float] = None):
+    def __init__(self, args, checkpoint: Optional[dict], stateful: dict, demos: Optional[dict], device,
+                 checkpoint_freq: int = 0):
         self.args, self.extra, self.evals, self.start_step, self.sps = args, {}, [], 0, 0.0
-        self.expert_return = expert_return if expert_return is not None and np.isfinite(expert_return) else None
-        self.random_return = random_return  # the normalized score's 0 (the expert's return is its 1)
+        returns = demos["episode_returns"] if demos else np.array([np.nan])  # the normalized score's 1 (random's: 0)
+        self.expert_return = float(returns.mean()) if np.isfinite(returns.mean()) else None
+        self.random_return = demos["metadata"]["random_return"] if demos else None
         self.name = checkpoint["run_name"] if checkpoint else args.run_name or \
             f"{args.env_id}__{args.exp_name}__{args.seed}__{int(time.time())}"
         self.dir = os.path.join("runs", self.name)
@@ -632,7 +619,10 @@ class Run:
         self.writer, self.machine = tensorboard(args, self.name, self.dir), machine(device)
         self.start_time = time.time()  # time.time() - start_time: the run's wall time (a resumed run's included)
         self.checkpoints = Checkpoints(self, stateful, checkpoint_freq, checkpoint, device)
-        self.tick = (self.start_step, time.perf_counter())  # where SPS counts from
+        self.tick, self.shown, self.tty = (self.start_step, time.perf_counter()), 0.0, sys.stdout.isatty()
+        expert = f"{len(returns)} demonstration episodes, return {returns.mean():.1f} | " if demos else ""
+        print(f"{'resumed ' * bool(checkpoint)}{self.dir} at step {self.start_step} of {args.total_timesteps} | "
+              f"{args.env_id} | {expert}{device}, threads {torch.get_num_threads()}", flush=True)
 
     def log(self, metrics: dict, step: int) -> None:
         for name, value in metrics.items():
@@ -641,23 +631,35 @@ class Run:
 
     def end_step(self, step: int, act) -> None:
         """After env step `step` (counted from 1): an evaluation every --eval-freq steps, a checkpoint when due."""
+        self.sps = (step - self.tick[0]) / (time.perf_counter() - self.tick[1])  # since the last evaluation
         if step % self.args.eval_freq == 0 or step == self.args.total_timesteps:
-            self.sps = (step - self.tick[0]) / (time.perf_counter() - self.tick[1])  # since the last evaluation
             self.evaluate(step, act)
             self.tick = (step, time.perf_counter())
+        elif self.tty and time.perf_counter() - self.shown > 10:
+            self.show(step)
         self.checkpoints.end_step(step)
 
     def evaluate(self, step: int, act) -> None:
-        """--eval-episodes of the deterministic policy: logged, written to results.json, printed in one line."""
+        """--eval-episodes of the deterministic policy: logged, written to results.json, shown."""
         returns = evaluate(act, self.args.env_id, self.args.eval_episodes, seed=self.args.seed + 100_000)
         mean, std = float(np.mean(returns)), float(np.std(returns))
         normalized = normalized_score(mean, self.random_return, self.expert_return)
         self.evals.append({"step": step, "mean": mean, "std": std, "normalized": normalized})
         self.log({"eval/return": mean, "eval/normalized_return": normalized, "charts/SPS": self.sps}, step)
         self.write_results(finished=False)
-        versus = f" = {normalized:.2f} normalized (random 0, expert 1)" if normalized is not None else ""
-        print(f"step {step}/{self.args.total_timesteps} | {self.sps:.0f} SPS | {(time.time() - self.start_time) / 60:.0f} "
-              f"min | eval return {mean:.1f} +- {std:.1f}{versus}", flush=True)
+        self.show(step)
+
+    def show(self, step: int) -> None:
+        """One line: steps, SPS, minutes so far and left, the latest evaluation (on a terminal, rewritten in place)."""
+        total, last = self.args.total_timesteps, self.evals[-1] if self.evals else None
+        line = (f"step {step}/{total} | {self.sps:.0f} SPS | {(time.time() - self.start_time) / 60:.0f} min, "
+                f"{(total - step) / max(self.sps, 1e-6) / 60:.0f} min left")
+        if last:
+            score = f" = {last['normalized']:.2f} normalized" if last["normalized"] is not None else ""
+            line += f" | eval at {last['step']}: return {last['mean']:.1f} +- {last['std']:.1f}{score}"
+        stays = not self.tty or (last is not None and last["step"] == step)
+        print(f"\r{line}\033[K" if self.tty else line, end="\n" if stays else "", flush=True)
+        self.shown = time.perf_counter()
 
     def write_results(self, finished: bool) -> None:
         """results.json: the run's config, its evaluation curve and where it ran (format in docs/sweeps.md)."""
@@ -666,7 +668,8 @@ class Run:
             "algo": self.args.exp_name, "env_id": self.args.env_id, "seed": self.args.seed, "finished": finished,
             "evals": self.evals, "final_return": final.get("mean"), "final_normalized_return": final.get("normalized"),
             "random_return": self.random_return, "expert_return": self.expert_return, "sps": self.sps,
-            "wall_time_s": time.time() - self.start_time, "machine": self.machine, "config": asdict(self.args)} | self.extra)
+            "wall_time_s": time.time() - self.start_time, "machine": self.machine, "config": asdict(self.args),
+        } | self.extra)
 
     def finish(self, act, models: dict) -> None:
         """The last checkpoint and results.json, the models (unless --no-save-model), a video (--capture-video)."""
@@ -676,7 +679,7 @@ class Run:
         for filename, content in models.items() if self.args.save_model else ():
             save_file(os.path.join(self.dir, filename), content)
         if self.args.capture_video:
-            evaluate(act, self.args.env_id, 1, self.args.seed + 100_000, capture_video_dir=os.path.join(self.dir, "videos"))
+            evaluate(act, self.args.env_id, 1, self.args.seed + 100_000, os.path.join(self.dir, "videos"))
         self.writer.close()
         print(f"done: {self.args.total_timesteps} steps in {(time.time() - self.start_time) / 60:.1f} min: {self.dir}")
 
@@ -695,8 +698,10 @@ class Checkpoints:
                     obj.load_state_dict(checkpoint[name])
             run.evals, run.start_step = checkpoint["evals"], checkpoint["step"]
             run.start_time -= checkpoint["wall_time"]
-            set_rng_state(checkpoint["rng"])
-            print(f"resumed {run.dir} at step {run.start_step}")
+            rng = checkpoint["rng"]
+            random.setstate(rng["python"]), np.random.set_state(rng["numpy"]), torch.set_rng_state(rng["torch"])
+            if rng["cuda"] is not None and torch.cuda.is_available():
+                torch.cuda.set_rng_state_all(rng["cuda"])
         signal.signal(signal.SIGINT, self.on_signal), signal.signal(signal.SIGTERM, self.on_signal)
 
     def on_signal(self, signum, frame):
@@ -720,7 +725,9 @@ class Checkpoints:
     def save(self, step: int) -> None:
         run, state = self.run, {name: dict(obj) if isinstance(obj, dict) else obj.state_dict()
                                 for name, obj in self.stateful.items()}
-        save_file(os.path.join(run.dir, "checkpoint.pt"), state | dict(step=step, evals=run.evals, rng=rng_state(),
+        rng = {"python": random.getstate(), "numpy": np.random.get_state(), "torch": torch.get_rng_state(),
+               "cuda": torch.cuda.get_rng_state_all() if torch.cuda.is_available() else None}
+        save_file(os.path.join(run.dir, "checkpoint.pt"), state | dict(step=step, evals=run.evals, rng=rng,
                   wall_time=time.time() - run.start_time, config=asdict(run.args), run_name=run.name))
 
 
@@ -732,12 +739,13 @@ def tensorboard(args, name: str, run_dir: str):
                    config=vars(args), name=name, id=name, resume="allow", save_code=True)
     from torch.utils.tensorboard import SummaryWriter
     writer = SummaryWriter(run_dir)
-    writer.add_text("hyperparameters", "|param|value|\n|-|-|\n" + "\n".join(f"|{k}|{v}|" for k, v in asdict(args).items()))
+    table = "\n".join(f"|{k}|{v}|" for k, v in asdict(args).items())
+    writer.add_text("hyperparameters", "|param|value|\n|-|-|\n" + table)
     return writer
 
 
 def save_file(path: str, obj) -> None:
-    """torch.save for .pt files, JSON otherwise, through a temporary file: a run killed while saving keeps the old one."""
+    """torch.save for .pt files, JSON otherwise, through a temporary file: a run killed while saving keeps the old."""
     if path.endswith(".pt"):
         torch.save(obj, path + ".tmp")
     else:
@@ -746,35 +754,20 @@ def save_file(path: str, obj) -> None:
     os.replace(path + ".tmp", path)
 
 
-def rng_state() -> dict:
-    return {"python": random.getstate(), "numpy": np.random.get_state(), "torch": torch.get_rng_state(),
-            "cuda": torch.cuda.get_rng_state_all() if torch.cuda.is_available() else None}
-
-
-def set_rng_state(rng: dict) -> None:
-    random.setstate(rng["python"]), np.random.set_state(rng["numpy"]), torch.set_rng_state(rng["torch"])
-    if rng["cuda"] is not None and torch.cuda.is_available():
-        torch.cuda.set_rng_state_all(rng["cuda"])
-
-
 def machine(device) -> dict:
-    """What decides a run's numbers besides its config: versions, CPU, threads, device, and the code's git commit
-    ("-dirty" with uncommitted changes; None outside a git checkout)."""
-    from importlib.metadata import version
-    from shutil import which
-    from subprocess import run
+    """What decides a run's numbers besides its config: versions, CPU, threads, device, the code's commit ("-dirty")."""
     cpuinfo = open("/proc/cpuinfo").read().splitlines() if os.path.exists("/proc/cpuinfo") else []
-    cpu = next((line.split(":", 1)[1].strip() for line in cpuinfo if line.startswith("model name")), platform.processor())
-    git = run(["git", "describe", "--always", "--dirty", "--abbrev=12"], capture_output=True, text=True,
-              cwd=os.path.dirname(os.path.abspath(__file__))).stdout.strip() if which("git") else ""
+    models = (line.split(":", 1)[1].strip() for line in cpuinfo if line.startswith("model name"))
+    cpu = next(models, platform.processor())
+    git = subprocess.run(["git", "describe", "--always", "--dirty", "--abbrev=12"], capture_output=True, text=True,
+                         cwd=os.path.dirname(os.path.abspath(__file__))).stdout.strip() if shutil.which("git") else ""
     return {"host": platform.node(), "cpu": cpu, "cpu_capability": torch.backends.cpu.get_cpu_capability(),
             "threads": torch.get_num_threads(), "device": str(device), "python": platform.python_version(),
-            **{name: version(name) for name in ("torch", "numpy", "gymnasium", "mujoco")}, "git": git or None}
+            **{name: metadata.version(name) for name in ("torch", "numpy", "gymnasium", "mujoco")}, "git": git or None}
 
 
 def resume(args, keep=("total_timesteps", "cuda", "threads")):
-    """--resume: the saved checkpoint, and the saved run's config with the fields in `keep` taken from the command
-    line where given there."""
+    """--resume: the saved checkpoint, and its run's config with the fields in `keep` from the command line if given."""
     path = os.path.join(args.resume, "checkpoint.pt") if os.path.isdir(args.resume) else args.resume
     if not os.path.isfile(path):
         raise SystemExit(f"error: no checkpoint at '{path}'; pass --resume runs/<run> of a run that saved one")
@@ -822,7 +815,8 @@ if __name__ == "__main__":
         checkpoint["replay_buffer"], refill_until = rb.state_dict(), checkpoint["step"] + args.learning_starts
         print(f"warning: the checkpoint holds no replay buffer; the current policy refills it for "
               f"{args.learning_starts} steps before updates resume")
-    run = Run(args, checkpoint, {"agent": agent, "replay_buffer": rb}, None, device, checkpoint_freq=args.checkpoint_freq)
+    run = Run(args, checkpoint, {"agent": agent, "replay_buffer": rb}, None, device,
+              checkpoint_freq=args.checkpoint_freq)
     act = graphed_act(agent.actor, obs_dim, device) if args.cudagraphs else agent.actor.act
     update_step = None  # built when learning starts (CUDA graphs capture real batches)
 

@@ -8,34 +8,33 @@ states (label 1) from the learner's transitions, and a SAC learner maximises a r
 This is gail.py with (s, s') in place of (s, a): `diff gail.py gaifo.py` shows exactly that.
 
 Implementation choices and deviations
-1. Expert pairs are (observations[t], next_observations[t]) of the demonstrations: consecutive states
-   of one trajectory, whose last pair ends in the true final state, so no pair spans an episode
-   boundary. The learner's pairs are replay rows (s, s') with the true next observation (also at a
-   time-limit truncation, never the reset observation).
+1. Expert pairs are (observations[t], next_observations[t]) of one demonstration, so no pair spans an episode
+   boundary; the learner's are replay rows (s, s') with the true next observation (at a truncation too).
 2. The reward is recomputed from the current discriminator for every sampled SAC batch, never stored.
-3. `--reward-form`: softplus = -log(1 - D) >= 0 (default), logit, log-d = log D; the expert = 1
-   convention of gail.py (the paper's cost log D with the labels flipped is the same objective).
-4. Discriminator and SAC settings: those of gail.py (the paper's GAIL column), `--disc-*` flags.
+3. `--reward-form`: softplus = -log(1 - D) >= 0 (default), logit, log-d = log D; gail.py's expert = 1 convention
+   (the paper's cost log D with the labels flipped is the same objective).
+4. Discriminator (`--disc-*`) and SAC: gail.py's settings (the RILe paper's GAIL column), but the temperature
+   stays at its fixed 0.2 (`--autotune` tunes it towards -|A|, as gail.py does by default).
 5. `--expert-state-noise` adds Gaussian noise to the expert's states (both elements of a pair).
-6. `--termination-remedy absorbing` (DAC, as in gail.py): a termination's pair becomes (s, s_abs),
-   followed by (s_abs, s_abs), for the learner and the expert alike.
+6. `--termination-remedy absorbing` (DAC, as in gail.py): a termination's pair becomes (s, s_abs), followed by
+   (s_abs, s_abs), for the learner and the expert alike; `none` (default) keeps terminations terminal.
 
-Logged metrics: charts/episodic_return, charts/SPS, eval/return, eval/normalized_return,
-losses/{qf_loss,qf_values,actor_loss,alpha_loss,alpha,entropy}, losses/disc_loss, losses/disc_gp,
-disc/expert_prob, disc/policy_prob, reward/learned_mean, reward/learned_std. Every --dynamics-freq steps, in
-TensorBoard (dynamics/<name>), dynamics.json and results.json ("reward_measures"), the paper's measures of the learned
-reward, named as rile.py names them (r_S: GAIfO's reward, D on (s, s')): r_s_demos, r_s_student, r_s_spread,
-r_s_absorbing, d_demos, d_student, r_s_follows_d, rfdc, fs_rfdc, cpr (`reward_measures`).
+Logged metrics: charts/{episodic_return,episodic_length,SPS}, eval/{return,normalized_return}, losses/{qf_loss,
+qf_values,qf_target_var,actor_loss,alpha_loss,alpha,entropy,disc_loss,disc_gp}, disc/{expert,policy}_prob,
+reward/learned_{mean,std}, dynamics/* (rile.py's reward measures, every --dynamics-freq). Details: docs/baselines.md
 """
 
 import json
 import os
 import platform
 import random
+import shutil
 import signal
+import subprocess
 import sys
 import time
 from dataclasses import asdict, dataclass, fields, replace
+from importlib import metadata
 from typing import Literal, NamedTuple, Optional
 
 import gymnasium as gym
@@ -128,8 +127,9 @@ class Args:
     disc_update_every: int = 1
     """one discriminator update every this many env steps (the paper's "1 update per round")"""
     disc_normalize: Literal["none", "demos", "pooled"] = "none"
-    """standardise the discriminator's inputs (its gradient penalty then acts in those units): by the demonstrations'
-    mean and std, or by the running statistics of its training batches, expert and agent pairs pooled"""
+    """standardise the discriminator's inputs (its gradient penalty then acts in those units): not at all
+    (default); by the running statistics of its training batches, expert and agent pairs pooled; by the
+    demonstrations' mean and std"""
 
     # Imitation arguments
     expert_path: Optional[str] = None
@@ -139,8 +139,7 @@ class Args:
     expert_state_noise: float = 0.0
     """std of Gaussian noise added to the expert's states (noise-robustness experiment)"""
     dynamics_freq: int = 10_000
-    """measure the learned reward every this many steps: r_S and D on demonstrations and student, RFDC, FS-RFDC, CPR
-    (0 disables)"""
+    """measure the learned reward every this many steps (r_S, D, RFDC, FS-RFDC, CPR; header); 0 disables"""
 
 
 # ALGO LOGIC: the discriminator, then GAIL's reward and update, here on transitions (s, s')
@@ -156,7 +155,8 @@ class Discriminator(nn.Module):
                  stats: Optional[tuple] = None, pooled: bool = False):
         super().__init__()
         self.net = nn.Sequential(
-            nn.Linear(in_dim, hidden_dim), nn.Tanh(), nn.Linear(hidden_dim, hidden_dim), nn.Tanh(), nn.Linear(hidden_dim, 1)
+            nn.Linear(in_dim, hidden_dim), nn.Tanh(), nn.Linear(hidden_dim, hidden_dim), nn.Tanh(),
+            nn.Linear(hidden_dim, 1)
         )
         shift, scale = stats if stats is not None else (torch.zeros(in_dim), torch.ones(in_dim))
         self.register_buffer("shift", torch.as_tensor(shift, dtype=torch.float32).clone())
@@ -171,8 +171,9 @@ class Discriminator(nn.Module):
 
     def load_state_dict(self, state: dict, strict: bool = True):
         """Files saved before inputs could be standardised have no statistics: none then."""
-        return super().load_state_dict({"shift": torch.zeros_like(self.shift), "scale": torch.ones_like(self.scale),
-                                        "var": torch.ones_like(self.var), "updates": torch.zeros(())} | dict(state), strict)
+        none = {"shift": torch.zeros_like(self.shift), "scale": torch.ones_like(self.scale),
+                "var": torch.ones_like(self.var), "updates": torch.zeros(())}
+        return super().load_state_dict(none | dict(state), strict)
 
     @torch.no_grad()
     def update_stats(self, x):
@@ -195,7 +196,8 @@ class Discriminator(nn.Module):
         z_hat = (eps * expert_z + (1 - eps) * policy_z).requires_grad_(True)
         grad = torch.autograd.grad(self.net(z_hat).sum(), z_hat, create_graph=True)[0]
         gp = (grad.norm(2, dim=1) - self.gp_center).pow(2).mean()
-        return bce + self.gp_weight * gp, bce, gp, torch.sigmoid(expert_logits).mean(), torch.sigmoid(policy_logits).mean()
+        expert_prob, policy_prob = torch.sigmoid(expert_logits).mean(), torch.sigmoid(policy_logits).mean()
+        return bce + self.gp_weight * gp, bce, gp, expert_prob, policy_prob
 
     def update(self, expert_x, policy_x) -> dict:
         if self.pooled:
@@ -280,7 +282,8 @@ def reward_measures(reward, disc_prob, rb: "ReplayBuffer", expert: dict, absorbi
            "r_s_follows_d": None if np.isnan(follows) else follows, "r_s_absorbing": None, **(extra or {}),
            "rfdc": float(np.abs(np.sort(r_student) - np.sort(last_student)).mean())
            if last_student is not None and len(last_student) == n else None,
-           "fs_rfdc": float(np.abs(r_demos - last_demos).mean()) if last_demos is not None and r_demos is not None else None,
+           "fs_rfdc": float(np.abs(r_demos - last_demos).mean())
+           if last_demos is not None and r_demos is not None else None,
            "cpr": None if np.isnan(cpr) else cpr}
     if out["r_s_demos"] is not None:
         out["r_s_spread"] = out["r_s_demos"] - out["r_s_student"]
@@ -342,16 +345,13 @@ def make_env(env_id: str, seed: int, render_mode: Optional[str] = None) -> gym.E
 
 
 def seed_everything(seed: int, torch_deterministic: bool = True) -> None:
-    random.seed(seed)
-    np.random.seed(seed)
-    torch.manual_seed(seed)
+    random.seed(seed), np.random.seed(seed), torch.manual_seed(seed)
     torch.backends.cudnn.deterministic = torch_deterministic
 # --- end shared: env ---
 
 
 # --- shared: actor ---
-LOG_STD_MAX = 2
-LOG_STD_MIN = -5
+LOG_STD_MIN, LOG_STD_MAX = -5, 2
 
 
 class Actor(nn.Module):
@@ -360,7 +360,8 @@ class Actor(nn.Module):
 
     def __init__(self, obs_dim: int, act_dim: int, action_low, action_high, hidden_dim: int = 256):
         super().__init__()
-        self.net = nn.Sequential(nn.Linear(obs_dim, hidden_dim), nn.ReLU(), nn.Linear(hidden_dim, hidden_dim), nn.ReLU())
+        self.net = nn.Sequential(nn.Linear(obs_dim, hidden_dim), nn.ReLU(), nn.Linear(hidden_dim, hidden_dim),
+                                 nn.ReLU())
         self.fc_mean, self.fc_logstd = nn.Linear(hidden_dim, act_dim), nn.Linear(hidden_dim, act_dim)
         low, high = torch.as_tensor(action_low, dtype=torch.float32), torch.as_tensor(action_high, dtype=torch.float32)
         self.register_buffer("action_scale", (high - low) / 2.0)
@@ -408,8 +409,7 @@ def actor_file(actor: Actor, env_id: str, **extra) -> dict:
 
 # --- shared: critic ---
 class TwinQ(nn.Module):
-    """Two Q-networks as one module: every weight has a leading dimension of 2, so each layer of both critics
-    is one batched matmul. forward returns Q-values of shape (2, batch)."""
+    """Two Q-networks as one module, each weight with a leading dimension of 2 (a batched matmul); Q of shape (2, B)."""
 
     def __init__(self, obs_dim: int, act_dim: int, hidden_dim: int = 256, num_q: int = 2):
         super().__init__()
@@ -432,10 +432,9 @@ class TwinQ(nn.Module):
 
 # --- shared: sac ---
 class SAC:
-    """Actor, twin critics, target critics and the temperature, with their optimisers; one `update` per env
-    step. absorbing=True (DAC's absorbing states, `--termination-remedy absorbing`): observations carry a last
-    indicator column, 1 at the absorbing state that follows a termination. The actor never sees it; at the
-    absorbing state the only action is zero, so it has no entropy term and no actor or temperature loss."""
+    """Actor, twin critics, target critics and the temperature, with their optimisers; one `update` per env step.
+    absorbing=True (DAC's absorbing states): observations carry a last indicator column, 1 at the absorbing state
+    after a termination, which the actor never sees; there the only action is zero: no entropy, actor or alpha loss."""
 
     def __init__(self, obs_dim, act_dim, action_low, action_high, args, device, absorbing: bool = False):
         self.absorbing, self.gamma, self.tau, self.target_entropy = absorbing, args.gamma, args.tau, -float(act_dim)
@@ -446,7 +445,8 @@ class SAC:
         self.log_alpha = torch.tensor(float(np.log(args.alpha)), device=device, requires_grad=args.autotune)
         self.q_optimizer = torch.optim.Adam(self.qf.parameters(), lr=args.q_lr, fused=True)
         self.actor_optimizer = torch.optim.Adam(self.actor.parameters(), lr=args.policy_lr, fused=True)
-        self.alpha_optimizer = torch.optim.Adam([self.log_alpha], lr=args.policy_lr, fused=True) if args.autotune else None
+        self.alpha_optimizer = (torch.optim.Adam([self.log_alpha], lr=args.policy_lr, fused=True) if args.autotune
+                                else None)
 
     def policy(self, obs):
         """a ~ pi(.|s) and log pi(a|s); with absorbing states, a = 0 and log pi = 0 where s is absorbing."""
@@ -486,7 +486,6 @@ class SAC:
         self.q_optimizer.zero_grad(set_to_none=False)
         qf_loss.backward()
         self.q_optimizer.step()
-
         actor_loss, alpha_loss, entropy = self.actor_loss(obs)
         self.actor_optimizer.zero_grad(set_to_none=False)
         if self.alpha_optimizer is not None:
@@ -602,8 +601,9 @@ def load_demonstrations(path: str, env: gym.Env, num_trajs: Optional[int] = None
             fail(f"hold {len(data['episode_lengths'])} episodes, fewer than --num-expert-trajs {num_trajs}",
                  "pass a smaller --num-expert-trajs")
         end = int(data["episode_starts"][num_trajs - 1] + data["episode_lengths"][num_trajs - 1])
-        data |= {k: data[k][: num_trajs if k.startswith("episode_") else end] for k in (*DEMO_KEYS, "actions") if k in data}
-    if "random_return" not in meta:  # files from before issue 31: measured now (`demos.py info --add-random-return`)
+        data |= {k: data[k][: num_trajs if k.startswith("episode_") else end]
+                 for k in (*DEMO_KEYS, "actions") if k in data}
+    if "random_return" not in meta:  # older files: measured now (`demos.py info --add-random-return` stores it)
         meta["random_return"] = random_return(env_id)
         print(f"{path}: no random-policy return in its metadata; uniform actions return {meta['random_return']:.1f}")
     return data | {"metadata": meta}
@@ -613,8 +613,7 @@ def load_demonstrations(path: str, env: gym.Env, num_trajs: Optional[int] = None
 # --- shared: expert data ---
 def expert_tensors(demos: dict, seed: int, device, state_noise: float = 0.0, action_noise: float = 0.0,
                    action_low=None, action_high=None) -> dict:
-    """The expert transitions as tensors, with the noise of the noise-robustness experiment added once (actions
-    clipped to the box; no "actions" from state-only demonstrations)."""
+    """The expert transitions as tensors, the noise-robustness experiment's noise added once (actions in the box)."""
     rng = np.random.default_rng(seed + 1)
     obs, next_obs, actions = demos["observations"], demos["next_observations"], demos.get("actions")
     if state_noise > 0:
@@ -630,8 +629,7 @@ def expert_tensors(demos: dict, seed: int, device, state_noise: float = 0.0, act
 
 # --- shared: evaluation ---
 def evaluate(act, env_id: str, num_episodes: int, seed: int, capture_video_dir: Optional[str] = None) -> list:
-    """Returns of the deterministic policy on its own env; episode i starts from reset(seed=seed + i), so
-    every evaluation of a run sees the same start states."""
+    """Returns of the deterministic policy on its own env, episode i from reset(seed=seed + i): the same starts."""
     env = make_env(env_id, seed, render_mode="rgb_array" if capture_video_dir else None)
     if capture_video_dir:
         env = gym.wrappers.RecordVideo(env, capture_video_dir, episode_trigger=lambda ep: ep == 0, disable_logger=True)
@@ -654,22 +652,21 @@ def random_return(env_id: str, num_episodes: int = 10, seed: int = 100_000) -> f
 
 
 def normalized_score(ret: float, random: Optional[float], expert: Optional[float]) -> Optional[float]:
-    """(R - R_random) / (R_expert - R_random): 0 for random actions, 1 for the demonstrations (D4RL's convention);
-    None where either is unknown or the expert is no better than random."""
+    """(R - R_random) / (R_expert - R_random), D4RL's: 0 random, 1 the demonstrations; None if unknown or not above."""
     return (ret - random) / (expert - random) if random is not None and expert is not None and expert > random else None
 # --- end shared: evaluation ---
 
 
 # --- shared: run ---
 class Run:
-    """The run's directory (config.json, TensorBoard, results.json with `extra` added), an evaluation every --eval-freq
-    steps, and its `Checkpoints` (every `checkpoint_freq` steps, 0: none; on Ctrl-C / SIGTERM; --resume)."""
+    """The run's directory (config.json, TensorBoard, results.json with `extra`), evaluations, its `Checkpoints`."""
 
-    def __init__(self, args, checkpoint: Optional[dict], stateful: dict, expert_return: Optional[float], device,
-                 checkpoint_freq: int = 0, random_return: Optional[float] = None):
+    def __init__(self, args, checkpoint: Optional[dict], stateful: dict, demos: Optional[dict], device,
+                 checkpoint_freq: int = 0):
         self.args, self.extra, self.evals, self.start_step, self.sps = args, {}, [], 0, 0.0
-        self.expert_return = expert_return if expert_return is not None and np.isfinite(expert_return) else None
-        self.random_return = random_return  # the normalized score's 0 (the expert's return is its 1)
+        returns = demos["episode_returns"] if demos else np.array([np.nan])  # the normalized score's 1 (random's: 0)
+        self.expert_return = float(returns.mean()) if np.isfinite(returns.mean()) else None
+        self.random_return = demos["metadata"]["random_return"] if demos else None
         self.name = checkpoint["run_name"] if checkpoint else args.run_name or \
             f"{args.env_id}__{args.exp_name}__{args.seed}__{int(time.time())}"
         self.dir = os.path.join("runs", self.name)
@@ -678,7 +675,10 @@ class Run:
         self.writer, self.machine = tensorboard(args, self.name, self.dir), machine(device)
         self.start_time = time.time()  # time.time() - start_time: the run's wall time (a resumed run's included)
         self.checkpoints = Checkpoints(self, stateful, checkpoint_freq, checkpoint, device)
-        self.tick = (self.start_step, time.perf_counter())  # where SPS counts from
+        self.tick, self.shown, self.tty = (self.start_step, time.perf_counter()), 0.0, sys.stdout.isatty()
+        expert = f"{len(returns)} demonstration episodes, return {returns.mean():.1f} | " if demos else ""
+        print(f"{'resumed ' * bool(checkpoint)}{self.dir} at step {self.start_step} of {args.total_timesteps} | "
+              f"{args.env_id} | {expert}{device}, threads {torch.get_num_threads()}", flush=True)
 
     def log(self, metrics: dict, step: int) -> None:
         for name, value in metrics.items():
@@ -687,23 +687,35 @@ class Run:
 
     def end_step(self, step: int, act) -> None:
         """After env step `step` (counted from 1): an evaluation every --eval-freq steps, a checkpoint when due."""
+        self.sps = (step - self.tick[0]) / (time.perf_counter() - self.tick[1])  # since the last evaluation
         if step % self.args.eval_freq == 0 or step == self.args.total_timesteps:
-            self.sps = (step - self.tick[0]) / (time.perf_counter() - self.tick[1])  # since the last evaluation
             self.evaluate(step, act)
             self.tick = (step, time.perf_counter())
+        elif self.tty and time.perf_counter() - self.shown > 10:
+            self.show(step)
         self.checkpoints.end_step(step)
 
     def evaluate(self, step: int, act) -> None:
-        """--eval-episodes of the deterministic policy: logged, written to results.json, printed in one line."""
+        """--eval-episodes of the deterministic policy: logged, written to results.json, shown."""
         returns = evaluate(act, self.args.env_id, self.args.eval_episodes, seed=self.args.seed + 100_000)
         mean, std = float(np.mean(returns)), float(np.std(returns))
         normalized = normalized_score(mean, self.random_return, self.expert_return)
         self.evals.append({"step": step, "mean": mean, "std": std, "normalized": normalized})
         self.log({"eval/return": mean, "eval/normalized_return": normalized, "charts/SPS": self.sps}, step)
         self.write_results(finished=False)
-        versus = f" = {normalized:.2f} normalized (random 0, expert 1)" if normalized is not None else ""
-        print(f"step {step}/{self.args.total_timesteps} | {self.sps:.0f} SPS | {(time.time() - self.start_time) / 60:.0f} "
-              f"min | eval return {mean:.1f} +- {std:.1f}{versus}", flush=True)
+        self.show(step)
+
+    def show(self, step: int) -> None:
+        """One line: steps, SPS, minutes so far and left, the latest evaluation (on a terminal, rewritten in place)."""
+        total, last = self.args.total_timesteps, self.evals[-1] if self.evals else None
+        line = (f"step {step}/{total} | {self.sps:.0f} SPS | {(time.time() - self.start_time) / 60:.0f} min, "
+                f"{(total - step) / max(self.sps, 1e-6) / 60:.0f} min left")
+        if last:
+            score = f" = {last['normalized']:.2f} normalized" if last["normalized"] is not None else ""
+            line += f" | eval at {last['step']}: return {last['mean']:.1f} +- {last['std']:.1f}{score}"
+        stays = not self.tty or (last is not None and last["step"] == step)
+        print(f"\r{line}\033[K" if self.tty else line, end="\n" if stays else "", flush=True)
+        self.shown = time.perf_counter()
 
     def write_results(self, finished: bool) -> None:
         """results.json: the run's config, its evaluation curve and where it ran (format in docs/sweeps.md)."""
@@ -712,7 +724,8 @@ class Run:
             "algo": self.args.exp_name, "env_id": self.args.env_id, "seed": self.args.seed, "finished": finished,
             "evals": self.evals, "final_return": final.get("mean"), "final_normalized_return": final.get("normalized"),
             "random_return": self.random_return, "expert_return": self.expert_return, "sps": self.sps,
-            "wall_time_s": time.time() - self.start_time, "machine": self.machine, "config": asdict(self.args)} | self.extra)
+            "wall_time_s": time.time() - self.start_time, "machine": self.machine, "config": asdict(self.args),
+        } | self.extra)
 
     def finish(self, act, models: dict) -> None:
         """The last checkpoint and results.json, the models (unless --no-save-model), a video (--capture-video)."""
@@ -722,7 +735,7 @@ class Run:
         for filename, content in models.items() if self.args.save_model else ():
             save_file(os.path.join(self.dir, filename), content)
         if self.args.capture_video:
-            evaluate(act, self.args.env_id, 1, self.args.seed + 100_000, capture_video_dir=os.path.join(self.dir, "videos"))
+            evaluate(act, self.args.env_id, 1, self.args.seed + 100_000, os.path.join(self.dir, "videos"))
         self.writer.close()
         print(f"done: {self.args.total_timesteps} steps in {(time.time() - self.start_time) / 60:.1f} min: {self.dir}")
 
@@ -741,8 +754,10 @@ class Checkpoints:
                     obj.load_state_dict(checkpoint[name])
             run.evals, run.start_step = checkpoint["evals"], checkpoint["step"]
             run.start_time -= checkpoint["wall_time"]
-            set_rng_state(checkpoint["rng"])
-            print(f"resumed {run.dir} at step {run.start_step}")
+            rng = checkpoint["rng"]
+            random.setstate(rng["python"]), np.random.set_state(rng["numpy"]), torch.set_rng_state(rng["torch"])
+            if rng["cuda"] is not None and torch.cuda.is_available():
+                torch.cuda.set_rng_state_all(rng["cuda"])
         signal.signal(signal.SIGINT, self.on_signal), signal.signal(signal.SIGTERM, self.on_signal)
 
     def on_signal(self, signum, frame):
@@ -766,7 +781,9 @@ class Checkpoints:
     def save(self, step: int) -> None:
         run, state = self.run, {name: dict(obj) if isinstance(obj, dict) else obj.state_dict()
                                 for name, obj in self.stateful.items()}
-        save_file(os.path.join(run.dir, "checkpoint.pt"), state | dict(step=step, evals=run.evals, rng=rng_state(),
+        rng = {"python": random.getstate(), "numpy": np.random.get_state(), "torch": torch.get_rng_state(),
+               "cuda": torch.cuda.get_rng_state_all() if torch.cuda.is_available() else None}
+        save_file(os.path.join(run.dir, "checkpoint.pt"), state | dict(step=step, evals=run.evals, rng=rng,
                   wall_time=time.time() - run.start_time, config=asdict(run.args), run_name=run.name))
 
 
@@ -778,12 +795,13 @@ def tensorboard(args, name: str, run_dir: str):
                    config=vars(args), name=name, id=name, resume="allow", save_code=True)
     from torch.utils.tensorboard import SummaryWriter
     writer = SummaryWriter(run_dir)
-    writer.add_text("hyperparameters", "|param|value|\n|-|-|\n" + "\n".join(f"|{k}|{v}|" for k, v in asdict(args).items()))
+    table = "\n".join(f"|{k}|{v}|" for k, v in asdict(args).items())
+    writer.add_text("hyperparameters", "|param|value|\n|-|-|\n" + table)
     return writer
 
 
 def save_file(path: str, obj) -> None:
-    """torch.save for .pt files, JSON otherwise, through a temporary file: a run killed while saving keeps the old one."""
+    """torch.save for .pt files, JSON otherwise, through a temporary file: a run killed while saving keeps the old."""
     if path.endswith(".pt"):
         torch.save(obj, path + ".tmp")
     else:
@@ -792,35 +810,20 @@ def save_file(path: str, obj) -> None:
     os.replace(path + ".tmp", path)
 
 
-def rng_state() -> dict:
-    return {"python": random.getstate(), "numpy": np.random.get_state(), "torch": torch.get_rng_state(),
-            "cuda": torch.cuda.get_rng_state_all() if torch.cuda.is_available() else None}
-
-
-def set_rng_state(rng: dict) -> None:
-    random.setstate(rng["python"]), np.random.set_state(rng["numpy"]), torch.set_rng_state(rng["torch"])
-    if rng["cuda"] is not None and torch.cuda.is_available():
-        torch.cuda.set_rng_state_all(rng["cuda"])
-
-
 def machine(device) -> dict:
-    """What decides a run's numbers besides its config: versions, CPU, threads, device, and the code's git commit
-    ("-dirty" with uncommitted changes; None outside a git checkout)."""
-    from importlib.metadata import version
-    from shutil import which
-    from subprocess import run
+    """What decides a run's numbers besides its config: versions, CPU, threads, device, the code's commit ("-dirty")."""
     cpuinfo = open("/proc/cpuinfo").read().splitlines() if os.path.exists("/proc/cpuinfo") else []
-    cpu = next((line.split(":", 1)[1].strip() for line in cpuinfo if line.startswith("model name")), platform.processor())
-    git = run(["git", "describe", "--always", "--dirty", "--abbrev=12"], capture_output=True, text=True,
-              cwd=os.path.dirname(os.path.abspath(__file__))).stdout.strip() if which("git") else ""
+    models = (line.split(":", 1)[1].strip() for line in cpuinfo if line.startswith("model name"))
+    cpu = next(models, platform.processor())
+    git = subprocess.run(["git", "describe", "--always", "--dirty", "--abbrev=12"], capture_output=True, text=True,
+                         cwd=os.path.dirname(os.path.abspath(__file__))).stdout.strip() if shutil.which("git") else ""
     return {"host": platform.node(), "cpu": cpu, "cpu_capability": torch.backends.cpu.get_cpu_capability(),
             "threads": torch.get_num_threads(), "device": str(device), "python": platform.python_version(),
-            **{name: version(name) for name in ("torch", "numpy", "gymnasium", "mujoco")}, "git": git or None}
+            **{name: metadata.version(name) for name in ("torch", "numpy", "gymnasium", "mujoco")}, "git": git or None}
 
 
 def resume(args, keep=("total_timesteps", "cuda", "threads")):
-    """--resume: the saved checkpoint, and the saved run's config with the fields in `keep` taken from the command
-    line where given there."""
+    """--resume: the saved checkpoint, and its run's config with the fields in `keep` from the command line if given."""
     path = os.path.join(args.resume, "checkpoint.pt") if os.path.isdir(args.resume) else args.resume
     if not os.path.isfile(path):
         raise SystemExit(f"error: no checkpoint at '{path}'; pass --resume runs/<run> of a run that saved one")
@@ -859,12 +862,13 @@ if __name__ == "__main__":
                          stats, args.disc_normalize == "pooled").to(device)
     rb = ReplayBuffer(aug_dim, act_dim, args.buffer_size, device)
     measures = {"interval": None, "demos": None, "history": []}  # reward_measures' memory
-    stateful = {"agent": agent, "disc": disc, "disc_optimizer": disc.optimizer, "replay_buffer": rb, "measures": measures}
-    run = Run(args, checkpoint, stateful, float(demos["episode_returns"].mean()), device,
-              checkpoint_freq=args.checkpoint_freq, random_return=demos["metadata"]["random_return"])
+    stateful = {"agent": agent, "disc": disc, "disc_optimizer": disc.optimizer, "replay_buffer": rb,
+                "measures": measures}
+    run = Run(args, checkpoint, stateful, demos, device, checkpoint_freq=args.checkpoint_freq)
     run.extra = {"reward_measures": measures["history"]}
     disc_input = lambda data: torch.cat([data["obs"], data["next_obs"]], -1)
-    r_of, d_of = lambda data: gail_reward(disc(disc_input(data)), args.reward_form), lambda data: disc.prob(disc_input(data))
+    r_of = lambda data: gail_reward(disc(disc_input(data)), args.reward_form)
+    d_of = lambda data: disc.prob(disc_input(data))
 
     # TRY NOT TO MODIFY: start the game
     obs, _ = env.reset(seed=args.seed + run.start_step)

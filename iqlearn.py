@@ -1,60 +1,47 @@
 """IQ-Learn (online, chi^2): inverse soft-Q learning on the SAC machinery.
 
 Paper: Garg, Chakraborty, Cundy, Song & Ermon, "IQ-Learn: Inverse soft-Q Learning for Imitation",
-https://arxiv.org/abs/2106.12142 (written from the paper and a description of the
-authors' code, whose licence is academic-use only; none of it was copied).
+https://arxiv.org/abs/2106.12142 (written from the paper and a description of the authors' code, whose licence is
+academic-use only; none of it was copied).
 
 A single soft Q-function is learned directly from expert and policy data, with no discriminator and no
 reward network: the implicit reward is r(s, a) = Q(s, a) - gamma (1 - d) V(s'), with
-V(s) = Q(s, a~) - alpha log pi(a~|s). The critic maximises the expert's implicit reward under a chi^2
-regulariser; the actor is SAC's, trained on policy and expert states.
+V(s) = Q(s, a~) - alpha log pi(a~|s). The critic minimises -mean_expert(r) + a value term + 1/(4 chi2_alpha)
+mean(r^2), the chi^2 regulariser; the actor is SAC's, trained on policy and expert states. On tasks that
+terminate its evaluations swing, with no loss diverging: the objective's own behaviour, not a bug.
 
 Implementation choices and deviations
-1. Every update uses 256 replay + 256 expert transitions. Critic loss = -mean_expert(r) (soft-Q term)
-   + value term + 1/(4 * 0.5) mean_both(r^2) (chi^2 over both batches, the online form). Value term:
-   `value` = mean_both(V(s) - gamma (1 - d) V_targ(s')), or `v0` = (1 - gamma) mean_expert(V(s)) (on all
-   expert states, as the authors' code does, not initial states only).
-   The chi^2 term regularises the divergence between the expert and the *current* policy, so on the
-   policy half it takes r at the current policy's action, Q(s, a~pi(s)) - gamma (1 - d) V_targ(s'), as
-   the authors' code does ("current policy for regularization instead of RB"; `--chi2-actions policy`,
-   default). `--chi2-actions replay` takes the stored action, i.e. the rewards of the older policies
-   that filled the buffer (this script's behaviour before issue 16).
-2. One Q network (the shared critic block with one head: twin-min critics diverge here), a target copy
-   updated with tau 0.005 every step, fixed alpha, critic lr 3e-4. `--preset auto` (default) takes the value
-   variant and alpha of the IQ-Learn paper's scripts for the MuJoCo envs it lists (Hopper and Walker2d v0 /
-   1e-2, HalfCheetah value / 1e-2, Ant value / 1e-3, Humanoid v0 / 1.0) with the actor lr of its README's
-   MuJoCo commands, 3e-5. Other envs get the actor lr of IQ-Learn's agent config, 3e-4, alpha 1e-2, v0 and
-   the chi^2 term at the stored actions, measured on Pendulum-v1 (no terminations, actions in [-2, 2], 10
-   demonstrations, 15k steps; issue 32): with the MuJoCo actor lr nothing is learned (-1396, random actions
-   -1346), with 3e-4 and `value` -1096, with 3e-4 and v0 -286 / -974 / -1240 (seeds 1-3) with the chi^2 term at
-   the policy's actions and -332 / -296 / -229 at the stored ones (the expert -111 on its demonstrations'
-   starts, -199 on the evaluation's). `--preset none`: IQ-Learn's generic configs (value, 1e-2, actor lr 3e-4,
-   the policy's actions). Explicit flags override either.
-3. Done semantics (`--timeout-done`): off (default), only true terminations stop bootstrapping, for
-   expert and online data alike; on, time-limit truncations count as done in both, as the authors'
-   code does on MuJoCo (its expert files mark the 1000th step done).
-4. As in the authors' setup, no random warm-up: the stochastic policy acts from the first step and
-   updates start once 1,280 transitions are stored. No observation normalisation.
-5. Logged for divergence checks: the implicit reward on expert and policy batches, each loss term.
-6. What stays unstable is the objective's own (README, issue 16): on Hopper-v4 two seeds of three keep
-   losing and finding a near-expert policy with no loss diverging. With `v0` only the chi^2 term acts on
-   the policy's states, so the critic's reward does not rank the expert's actions above the policy's;
-   `value` does, but makes each policy step worth less than a termination's 0, and the policy falls.
+1. Every update: 256 replay + 256 expert transitions, the chi^2 term over both (the online form). Value term
+   (`--value-loss`): `value` = mean_both(V(s) - gamma (1 - d) V_targ(s')), or `v0` = (1 - gamma) mean_expert(V(s)).
+2. `--preset auto` (default): the value term and alpha of the paper's scripts for the MuJoCo envs it lists
+   (`PRESETS`), actor lr 3e-5; elsewhere v0, alpha 1e-2, actor lr 3e-4, chi^2 at the stored actions. `--preset none`:
+   IQ-Learn's generic configs (value, alpha 1e-2, actor lr 3e-4, chi^2 at the policy's actions). Flags override both.
+3. `--chi2-actions policy` (the listed envs' default): on policy states the chi^2 term takes r at the current
+   policy's action, as the authors' code does; `replay` takes the stored action (the older policies' rewards).
+4. `v0` averages V over all expert states, as the authors' code does, not over initial states only (the paper's).
+5. Done semantics (`--timeout-done`): off (default), only true terminations stop bootstrapping, for expert and online
+   data alike; on, truncations count as done in both, as the authors' code does on MuJoCo.
+6. One Q network (the shared critic block with one head: twin-min critics diverge here), a target copy updated
+   with tau 0.005 every step, fixed alpha, critic lr 3e-4.
+7. As in the authors' setup, no random warm-up: the stochastic policy acts from the first step and updates start
+   once 1,280 transitions are stored. No observation normalisation.
 
-Logged metrics: charts/episodic_return, charts/SPS, eval/return, eval/normalized_return,
-losses/{softq,value,chi2,critic,actor}, losses/q_expert, losses/q_policy, reward/implicit_expert,
-reward/implicit_policy (replay actions), reward/implicit_current_policy (the current policy's actions on
-the replay states; with `--chi2-actions policy`).
+Logged metrics: charts/{episodic_return,episodic_length,SPS}, eval/{return,normalized_return}, losses/{softq,value,
+chi2,critic,actor,q_expert,q_policy}, reward/implicit_{expert,policy} and, with `--chi2-actions policy`,
+reward/implicit_current_policy: the implicit reward shows divergence first. Details: docs/baselines.md
 """
 
 import json
 import os
 import platform
 import random
+import shutil
 import signal
+import subprocess
 import sys
 import time
 from dataclasses import asdict, dataclass, fields, replace
+from importlib import metadata
 from typing import Literal, NamedTuple, Optional
 
 import gymnasium as gym
@@ -115,8 +102,8 @@ class Args:
     learning_starts: int = 1_280
     """updates start once this many transitions are stored (the policy acts from the first step)"""
     preset: Literal["auto", "none"] = "auto"
-    """auto: the IQ-Learn paper's settings for the MuJoCo envs it lists, measured ones elsewhere; none: IQ-Learn's
-    generic configs (header, choice 2; explicit flags win)"""
+    """auto: the IQ-Learn paper's settings for the MuJoCo envs it lists, this script's for other envs; none:
+    IQ-Learn's generic configs (header, choice 2; explicit flags win)"""
     value_loss: Optional[Literal["value", "v0"]] = None
     """the value term: value (policy + expert states) or v0 ((1 - gamma) V on expert states); default by preset"""
     alpha: Optional[float] = None
@@ -158,7 +145,8 @@ class IQLearn(nn.Module):
         self.q_target.load_state_dict(self.q.state_dict())
         self.q_target.requires_grad_(False)
         self.alpha, self.gamma, self.tau = args.alpha, args.gamma, args.tau
-        self.value_loss, self.chi2_coef, self.chi2_actions = args.value_loss, 1.0 / (4 * args.chi2_alpha), args.chi2_actions
+        self.value_loss, self.chi2_actions = args.value_loss, args.chi2_actions
+        self.chi2_coef = 1.0 / (4 * args.chi2_alpha)
         self.to(device)
         self.q_optimizer = torch.optim.Adam(self.q.parameters(), lr=args.q_lr)
         self.actor_optimizer = torch.optim.Adam(self.actor.parameters(), lr=args.policy_lr)
@@ -186,8 +174,9 @@ class IQLearn(nn.Module):
             on_policy = self.q(obs[~is_expert], policy_actions)[0] - y[~is_expert]
             chi2_reward = torch.cat([on_policy, reward[is_expert]])
         chi2 = self.chi2_coef * chi2_reward.pow(2).mean()
-        terms = {"losses/softq": softq, "losses/value": value, "losses/chi2": chi2, "losses/q_expert": q[is_expert].mean(),
-                 "losses/q_policy": q[~is_expert].mean(), "reward/implicit_expert": reward[is_expert].mean(),
+        terms = {"losses/softq": softq, "losses/value": value, "losses/chi2": chi2,
+                 "losses/q_expert": q[is_expert].mean(), "losses/q_policy": q[~is_expert].mean(),
+                 "reward/implicit_expert": reward[is_expert].mean(),
                  "reward/implicit_policy": reward[~is_expert].mean()}
         if self.chi2_actions == "policy":
             terms["reward/implicit_current_policy"] = on_policy.mean()  # the same states, the current policy's actions
@@ -222,7 +211,7 @@ def apply_preset(args):
     """The value term, alpha, actor lr and chi^2 actions the flags leave open (header, choice 2)."""
     name = args.env_id.split("-")[0]
     if args.preset == "none":
-        value_loss, alpha, policy_lr, chi2_actions = "value", 1e-2, 3e-4, "policy"  # IQ-Learn's agent and method configs
+        value_loss, alpha, policy_lr, chi2_actions = "value", 1e-2, 3e-4, "policy"  # IQ-Learn's agent, method configs
     elif name in PRESETS:
         value_loss, alpha, policy_lr, chi2_actions = *PRESETS[name], 3e-5, "policy"  # its paper's MuJoCo scripts
     else:
@@ -248,16 +237,13 @@ def make_env(env_id: str, seed: int, render_mode: Optional[str] = None) -> gym.E
 
 
 def seed_everything(seed: int, torch_deterministic: bool = True) -> None:
-    random.seed(seed)
-    np.random.seed(seed)
-    torch.manual_seed(seed)
+    random.seed(seed), np.random.seed(seed), torch.manual_seed(seed)
     torch.backends.cudnn.deterministic = torch_deterministic
 # --- end shared: env ---
 
 
 # --- shared: actor ---
-LOG_STD_MAX = 2
-LOG_STD_MIN = -5
+LOG_STD_MIN, LOG_STD_MAX = -5, 2
 
 
 class Actor(nn.Module):
@@ -266,7 +252,8 @@ class Actor(nn.Module):
 
     def __init__(self, obs_dim: int, act_dim: int, action_low, action_high, hidden_dim: int = 256):
         super().__init__()
-        self.net = nn.Sequential(nn.Linear(obs_dim, hidden_dim), nn.ReLU(), nn.Linear(hidden_dim, hidden_dim), nn.ReLU())
+        self.net = nn.Sequential(nn.Linear(obs_dim, hidden_dim), nn.ReLU(), nn.Linear(hidden_dim, hidden_dim),
+                                 nn.ReLU())
         self.fc_mean, self.fc_logstd = nn.Linear(hidden_dim, act_dim), nn.Linear(hidden_dim, act_dim)
         low, high = torch.as_tensor(action_low, dtype=torch.float32), torch.as_tensor(action_high, dtype=torch.float32)
         self.register_buffer("action_scale", (high - low) / 2.0)
@@ -314,8 +301,7 @@ def actor_file(actor: Actor, env_id: str, **extra) -> dict:
 
 # --- shared: critic ---
 class TwinQ(nn.Module):
-    """Two Q-networks as one module: every weight has a leading dimension of 2, so each layer of both critics
-    is one batched matmul. forward returns Q-values of shape (2, batch)."""
+    """Two Q-networks as one module, each weight with a leading dimension of 2 (a batched matmul); Q of shape (2, B)."""
 
     def __init__(self, obs_dim: int, act_dim: int, hidden_dim: int = 256, num_q: int = 2):
         super().__init__()
@@ -423,8 +409,9 @@ def load_demonstrations(path: str, env: gym.Env, num_trajs: Optional[int] = None
             fail(f"hold {len(data['episode_lengths'])} episodes, fewer than --num-expert-trajs {num_trajs}",
                  "pass a smaller --num-expert-trajs")
         end = int(data["episode_starts"][num_trajs - 1] + data["episode_lengths"][num_trajs - 1])
-        data |= {k: data[k][: num_trajs if k.startswith("episode_") else end] for k in (*DEMO_KEYS, "actions") if k in data}
-    if "random_return" not in meta:  # files from before issue 31: measured now (`demos.py info --add-random-return`)
+        data |= {k: data[k][: num_trajs if k.startswith("episode_") else end]
+                 for k in (*DEMO_KEYS, "actions") if k in data}
+    if "random_return" not in meta:  # older files: measured now (`demos.py info --add-random-return` stores it)
         meta["random_return"] = random_return(env_id)
         print(f"{path}: no random-policy return in its metadata; uniform actions return {meta['random_return']:.1f}")
     return data | {"metadata": meta}
@@ -433,8 +420,7 @@ def load_demonstrations(path: str, env: gym.Env, num_trajs: Optional[int] = None
 
 # --- shared: evaluation ---
 def evaluate(act, env_id: str, num_episodes: int, seed: int, capture_video_dir: Optional[str] = None) -> list:
-    """Returns of the deterministic policy on its own env; episode i starts from reset(seed=seed + i), so
-    every evaluation of a run sees the same start states."""
+    """Returns of the deterministic policy on its own env, episode i from reset(seed=seed + i): the same starts."""
     env = make_env(env_id, seed, render_mode="rgb_array" if capture_video_dir else None)
     if capture_video_dir:
         env = gym.wrappers.RecordVideo(env, capture_video_dir, episode_trigger=lambda ep: ep == 0, disable_logger=True)
@@ -457,22 +443,21 @@ def random_return(env_id: str, num_episodes: int = 10, seed: int = 100_000) -> f
 
 
 def normalized_score(ret: float, random: Optional[float], expert: Optional[float]) -> Optional[float]:
-    """(R - R_random) / (R_expert - R_random): 0 for random actions, 1 for the demonstrations (D4RL's convention);
-    None where either is unknown or the expert is no better than random."""
+    """(R - R_random) / (R_expert - R_random), D4RL's: 0 random, 1 the demonstrations; None if unknown or not above."""
     return (ret - random) / (expert - random) if random is not None and expert is not None and expert > random else None
 # --- end shared: evaluation ---
 
 
 # --- shared: run ---
 class Run:
-    """The run's directory (config.json, TensorBoard, results.json with `extra` added), an evaluation every --eval-freq
-    steps, and its `Checkpoints` (every `checkpoint_freq` steps, 0: none; on Ctrl-C / SIGTERM; --resume)."""
+    """The run's directory (config.json, TensorBoard, results.json with `extra`), evaluations, its `Checkpoints`."""
 
-    def __init__(self, args, checkpoint: Optional[dict], stateful: dict, expert_return: Optional[float], device,
-                 checkpoint_freq: int = 0, random_return: Optional[float] = None):
+    def __init__(self, args, checkpoint: Optional[dict], stateful: dict, demos: Optional[dict], device,
+                 checkpoint_freq: int = 0):
         self.args, self.extra, self.evals, self.start_step, self.sps = args, {}, [], 0, 0.0
-        self.expert_return = expert_return if expert_return is not None and np.isfinite(expert_return) else None
-        self.random_return = random_return  # the normalized score's 0 (the expert's return is its 1)
+        returns = demos["episode_returns"] if demos else np.array([np.nan])  # the normalized score's 1 (random's: 0)
+        self.expert_return = float(returns.mean()) if np.isfinite(returns.mean()) else None
+        self.random_return = demos["metadata"]["random_return"] if demos else None
         self.name = checkpoint["run_name"] if checkpoint else args.run_name or \
             f"{args.env_id}__{args.exp_name}__{args.seed}__{int(time.time())}"
         self.dir = os.path.join("runs", self.name)
@@ -481,7 +466,10 @@ class Run:
         self.writer, self.machine = tensorboard(args, self.name, self.dir), machine(device)
         self.start_time = time.time()  # time.time() - start_time: the run's wall time (a resumed run's included)
         self.checkpoints = Checkpoints(self, stateful, checkpoint_freq, checkpoint, device)
-        self.tick = (self.start_step, time.perf_counter())  # where SPS counts from
+        self.tick, self.shown, self.tty = (self.start_step, time.perf_counter()), 0.0, sys.stdout.isatty()
+        expert = f"{len(returns)} demonstration episodes, return {returns.mean():.1f} | " if demos else ""
+        print(f"{'resumed ' * bool(checkpoint)}{self.dir} at step {self.start_step} of {args.total_timesteps} | "
+              f"{args.env_id} | {expert}{device}, threads {torch.get_num_threads()}", flush=True)
 
     def log(self, metrics: dict, step: int) -> None:
         for name, value in metrics.items():
@@ -490,23 +478,35 @@ class Run:
 
     def end_step(self, step: int, act) -> None:
         """After env step `step` (counted from 1): an evaluation every --eval-freq steps, a checkpoint when due."""
+        self.sps = (step - self.tick[0]) / (time.perf_counter() - self.tick[1])  # since the last evaluation
         if step % self.args.eval_freq == 0 or step == self.args.total_timesteps:
-            self.sps = (step - self.tick[0]) / (time.perf_counter() - self.tick[1])  # since the last evaluation
             self.evaluate(step, act)
             self.tick = (step, time.perf_counter())
+        elif self.tty and time.perf_counter() - self.shown > 10:
+            self.show(step)
         self.checkpoints.end_step(step)
 
     def evaluate(self, step: int, act) -> None:
-        """--eval-episodes of the deterministic policy: logged, written to results.json, printed in one line."""
+        """--eval-episodes of the deterministic policy: logged, written to results.json, shown."""
         returns = evaluate(act, self.args.env_id, self.args.eval_episodes, seed=self.args.seed + 100_000)
         mean, std = float(np.mean(returns)), float(np.std(returns))
         normalized = normalized_score(mean, self.random_return, self.expert_return)
         self.evals.append({"step": step, "mean": mean, "std": std, "normalized": normalized})
         self.log({"eval/return": mean, "eval/normalized_return": normalized, "charts/SPS": self.sps}, step)
         self.write_results(finished=False)
-        versus = f" = {normalized:.2f} normalized (random 0, expert 1)" if normalized is not None else ""
-        print(f"step {step}/{self.args.total_timesteps} | {self.sps:.0f} SPS | {(time.time() - self.start_time) / 60:.0f} "
-              f"min | eval return {mean:.1f} +- {std:.1f}{versus}", flush=True)
+        self.show(step)
+
+    def show(self, step: int) -> None:
+        """One line: steps, SPS, minutes so far and left, the latest evaluation (on a terminal, rewritten in place)."""
+        total, last = self.args.total_timesteps, self.evals[-1] if self.evals else None
+        line = (f"step {step}/{total} | {self.sps:.0f} SPS | {(time.time() - self.start_time) / 60:.0f} min, "
+                f"{(total - step) / max(self.sps, 1e-6) / 60:.0f} min left")
+        if last:
+            score = f" = {last['normalized']:.2f} normalized" if last["normalized"] is not None else ""
+            line += f" | eval at {last['step']}: return {last['mean']:.1f} +- {last['std']:.1f}{score}"
+        stays = not self.tty or (last is not None and last["step"] == step)
+        print(f"\r{line}\033[K" if self.tty else line, end="\n" if stays else "", flush=True)
+        self.shown = time.perf_counter()
 
     def write_results(self, finished: bool) -> None:
         """results.json: the run's config, its evaluation curve and where it ran (format in docs/sweeps.md)."""
@@ -515,7 +515,8 @@ class Run:
             "algo": self.args.exp_name, "env_id": self.args.env_id, "seed": self.args.seed, "finished": finished,
             "evals": self.evals, "final_return": final.get("mean"), "final_normalized_return": final.get("normalized"),
             "random_return": self.random_return, "expert_return": self.expert_return, "sps": self.sps,
-            "wall_time_s": time.time() - self.start_time, "machine": self.machine, "config": asdict(self.args)} | self.extra)
+            "wall_time_s": time.time() - self.start_time, "machine": self.machine, "config": asdict(self.args),
+        } | self.extra)
 
     def finish(self, act, models: dict) -> None:
         """The last checkpoint and results.json, the models (unless --no-save-model), a video (--capture-video)."""
@@ -525,7 +526,7 @@ class Run:
         for filename, content in models.items() if self.args.save_model else ():
             save_file(os.path.join(self.dir, filename), content)
         if self.args.capture_video:
-            evaluate(act, self.args.env_id, 1, self.args.seed + 100_000, capture_video_dir=os.path.join(self.dir, "videos"))
+            evaluate(act, self.args.env_id, 1, self.args.seed + 100_000, os.path.join(self.dir, "videos"))
         self.writer.close()
         print(f"done: {self.args.total_timesteps} steps in {(time.time() - self.start_time) / 60:.1f} min: {self.dir}")
 
@@ -544,8 +545,10 @@ class Checkpoints:
                     obj.load_state_dict(checkpoint[name])
             run.evals, run.start_step = checkpoint["evals"], checkpoint["step"]
             run.start_time -= checkpoint["wall_time"]
-            set_rng_state(checkpoint["rng"])
-            print(f"resumed {run.dir} at step {run.start_step}")
+            rng = checkpoint["rng"]
+            random.setstate(rng["python"]), np.random.set_state(rng["numpy"]), torch.set_rng_state(rng["torch"])
+            if rng["cuda"] is not None and torch.cuda.is_available():
+                torch.cuda.set_rng_state_all(rng["cuda"])
         signal.signal(signal.SIGINT, self.on_signal), signal.signal(signal.SIGTERM, self.on_signal)
 
     def on_signal(self, signum, frame):
@@ -569,7 +572,9 @@ class Checkpoints:
     def save(self, step: int) -> None:
         run, state = self.run, {name: dict(obj) if isinstance(obj, dict) else obj.state_dict()
                                 for name, obj in self.stateful.items()}
-        save_file(os.path.join(run.dir, "checkpoint.pt"), state | dict(step=step, evals=run.evals, rng=rng_state(),
+        rng = {"python": random.getstate(), "numpy": np.random.get_state(), "torch": torch.get_rng_state(),
+               "cuda": torch.cuda.get_rng_state_all() if torch.cuda.is_available() else None}
+        save_file(os.path.join(run.dir, "checkpoint.pt"), state | dict(step=step, evals=run.evals, rng=rng,
                   wall_time=time.time() - run.start_time, config=asdict(run.args), run_name=run.name))
 
 
@@ -581,12 +586,13 @@ def tensorboard(args, name: str, run_dir: str):
                    config=vars(args), name=name, id=name, resume="allow", save_code=True)
     from torch.utils.tensorboard import SummaryWriter
     writer = SummaryWriter(run_dir)
-    writer.add_text("hyperparameters", "|param|value|\n|-|-|\n" + "\n".join(f"|{k}|{v}|" for k, v in asdict(args).items()))
+    table = "\n".join(f"|{k}|{v}|" for k, v in asdict(args).items())
+    writer.add_text("hyperparameters", "|param|value|\n|-|-|\n" + table)
     return writer
 
 
 def save_file(path: str, obj) -> None:
-    """torch.save for .pt files, JSON otherwise, through a temporary file: a run killed while saving keeps the old one."""
+    """torch.save for .pt files, JSON otherwise, through a temporary file: a run killed while saving keeps the old."""
     if path.endswith(".pt"):
         torch.save(obj, path + ".tmp")
     else:
@@ -595,35 +601,20 @@ def save_file(path: str, obj) -> None:
     os.replace(path + ".tmp", path)
 
 
-def rng_state() -> dict:
-    return {"python": random.getstate(), "numpy": np.random.get_state(), "torch": torch.get_rng_state(),
-            "cuda": torch.cuda.get_rng_state_all() if torch.cuda.is_available() else None}
-
-
-def set_rng_state(rng: dict) -> None:
-    random.setstate(rng["python"]), np.random.set_state(rng["numpy"]), torch.set_rng_state(rng["torch"])
-    if rng["cuda"] is not None and torch.cuda.is_available():
-        torch.cuda.set_rng_state_all(rng["cuda"])
-
-
 def machine(device) -> dict:
-    """What decides a run's numbers besides its config: versions, CPU, threads, device, and the code's git commit
-    ("-dirty" with uncommitted changes; None outside a git checkout)."""
-    from importlib.metadata import version
-    from shutil import which
-    from subprocess import run
+    """What decides a run's numbers besides its config: versions, CPU, threads, device, the code's commit ("-dirty")."""
     cpuinfo = open("/proc/cpuinfo").read().splitlines() if os.path.exists("/proc/cpuinfo") else []
-    cpu = next((line.split(":", 1)[1].strip() for line in cpuinfo if line.startswith("model name")), platform.processor())
-    git = run(["git", "describe", "--always", "--dirty", "--abbrev=12"], capture_output=True, text=True,
-              cwd=os.path.dirname(os.path.abspath(__file__))).stdout.strip() if which("git") else ""
+    models = (line.split(":", 1)[1].strip() for line in cpuinfo if line.startswith("model name"))
+    cpu = next(models, platform.processor())
+    git = subprocess.run(["git", "describe", "--always", "--dirty", "--abbrev=12"], capture_output=True, text=True,
+                         cwd=os.path.dirname(os.path.abspath(__file__))).stdout.strip() if shutil.which("git") else ""
     return {"host": platform.node(), "cpu": cpu, "cpu_capability": torch.backends.cpu.get_cpu_capability(),
             "threads": torch.get_num_threads(), "device": str(device), "python": platform.python_version(),
-            **{name: version(name) for name in ("torch", "numpy", "gymnasium", "mujoco")}, "git": git or None}
+            **{name: metadata.version(name) for name in ("torch", "numpy", "gymnasium", "mujoco")}, "git": git or None}
 
 
 def resume(args, keep=("total_timesteps", "cuda", "threads")):
-    """--resume: the saved checkpoint, and the saved run's config with the fields in `keep` taken from the command
-    line where given there."""
+    """--resume: the saved checkpoint, and its run's config with the fields in `keep` from the command line if given."""
     path = os.path.join(args.resume, "checkpoint.pt") if os.path.isdir(args.resume) else args.resume
     if not os.path.isfile(path):
         raise SystemExit(f"error: no checkpoint at '{path}'; pass --resume runs/<run> of a run that saved one")
@@ -660,8 +651,7 @@ if __name__ == "__main__":
     rb = ReplayBuffer(obs_dim, act_dim, args.buffer_size, device)
     stateful = {"agent": agent, "q_optimizer": agent.q_optimizer, "actor_optimizer": agent.actor_optimizer,
                 "replay_buffer": rb}
-    run = Run(args, checkpoint, stateful, float(demos["episode_returns"].mean()), device,
-              checkpoint_freq=args.checkpoint_freq, random_return=demos["metadata"]["random_return"])
+    run = Run(args, checkpoint, stateful, demos, device, checkpoint_freq=args.checkpoint_freq)
 
     # TRY NOT TO MODIFY: start the game
     obs, _ = env.reset(seed=args.seed + run.start_step)

@@ -3,98 +3,57 @@
 Paper: Albaba, Christen, Langerak, Gebhardt, Hilliges, Black, "RILe: Reinforced Imitation Learning",
 https://arxiv.org/abs/2406.08472 (no official code is public; this file follows the paper's text).
 
-Three learners train together. A discriminator D(s, a) tells expert pairs (label 1) from the student's.
-A *trainer*, itself a SAC agent, observes the student's pair o_T = (s, a_S) and acts with one scalar
-a_T in [-1, 1], rewarded (default "exp-difference") with exp(-|(2D - 1) - a_T|): it learns to output
-v(D) = 2D - 1 and keeps adapting as D and the student change. The *student*, a SAC agent on the env, is
-rewarded with the trainer's action, r_S = a_T: a learned reward that can look ahead (the trainer has its own
-value function). `diff gail.py rile.py` shows what RILe adds to GAIL; the runs behind each choice below are
-in docs/rile.md and docs/reward-that-teaches.md.
+Three learners train together. A discriminator D(s, a) tells expert pairs (label 1) from the student's. A *trainer*,
+itself a SAC agent, observes the student's pair o_T = (s, a_S) and acts with one scalar a_T in [-1, 1], rewarded
+(default "exp-difference") with exp(-|(2D - 1) - a_T|), so that it learns to output v(D) = 2D - 1. The *student*, a
+SAC agent on the env, is rewarded with the trainer's action, r_S = a_T. `diff gail.py rile.py` shows what RILe adds to
+GAIL; `--student-reward discriminator` is the control that rewards the student with v(D) itself, with no trainer.
 
-Implementation choices and deviations
-1. Rewards are never stored: r_S is the current trainer's deterministic action on every sampled student
-   batch, r_T comes from the current D on every trainer batch.
-2. The trainer's transition is (o_T, a_T, o_T'): a_T is sampled when the student acts and stored; o_T' =
-   (s', a'_S) with a'_S a fresh sample of the *current* student, as SAC's own target uses a' ~ pi(s'): the
-   trainer's value should describe the student it rewards now. Its episode ends where the student's does.
-3. The trainer's and D's buffers (16,384 each) are windows over the newest transitions of the student's.
-4. Discriminator (gail.py's block and defaults): 64-64 tanh, BCE, lr 3e-5, 32 + 32 pairs, one update per env
-   step, and the paper's gradient penalty weight (1) in DAC's one-centred form on raw inputs (the paper names the
-   weight, not the form). Issue 28 first made it zero-centred (Mescheder et al. 2018) on inputs standardised by the
-   running statistics of D's batches (`--disc-gp-center 0 --disc-normalize pooled`), which holds D at 0.24-0.44 on the
-   student's pairs in every env; but once the student's temperature is tuned (7) and the trainer sees expert pairs
-   (8), the paper's D teaches as well or better: Hopper-v4 seed 1 0.97 (0.42 with the standardised D), HalfCheetah-v4
-   1.03, gail.py's Hopper-v4 0.86 against 0.76. On HalfCheetah-v4 it starts at its floor on the student's pairs (0.03
-   at 20k) and leaves it as the student closes in (0.18 at 150k); the trainer's expert pairs keep r_S's spread at
-   1.0-1.5 meanwhile (docs/reward-that-teaches.md). Also `--disc-normalize demos` and `--disc-update-every`.
-5. Freezing: the paper freezes the trainer "once its critic network converges" (threshold 0.1), so that the
-   student is not confused "in the later stages of training", and names no test. Ours: a moving average (0.99) of
-   the critic's TD loss beyond what no critic removes (the variance of its own sampled targets, from a'_S and a'_T,
-   estimated every 10 steps from two more draws), relative to the variance of the trainer's reward r_T in its
-   batches, stays below the threshold for `--trainer-freeze-window` steps, never before `--trainer-freeze-after`
-   (3/4 of the run: the paper's maze figure still shows the reward moving at 75 %). The critic has converged when
-   its error is small beside the variation of the reward it learns, which is what its action changes. A raw loss
-   is met by any flat target; a loss relative to the targets' variance (`--trainer-freeze-stat relative`) by the
-   value's spread across states (under 0.1 from 20k on Hopper-v4 while the error was larger than r_T's variance;
-   frozen there, the reward was exploited); the whole loss relative to r_T's variance (`reward`) by nothing at
-   discount 0.9, where the targets' own variance is 0.16-0.17 of r_T's (docs/reward-that-teaches.md). The earlier
-   rules: `--trainer-freeze-stat reward`, `relative`, and `loss --trainer-freeze-window 0 --trainer-freeze-after 0`;
-   `--no-trainer-freeze` turns it off. D keeps training, so a fixed reward can go stale: on Walker2d-v4 the student
-   found, within 10k steps of a freeze, pairs the frozen trainer paid and D rejected (r_S against 2D - 1 on its pairs
-   from 0.96 to -0.41, the frozen critic's error on D's current rewards 0.04 -> 1.5 of r_T's variance). A frozen
-   trainer is therefore watched (its critics' loss every 10 steps, no update) and learns again, until the test
-   freezes it anew, once that statistic passes `--trainer-release-threshold` (1: an error as large as the variation
-   of the reward it learns); `--trainer-release-threshold inf` is the paper's one-way freeze.
-6. Termination bias (the paper is silent): r_S = a_T can be negative, which pays the student to end episodes
-   early. `--termination-remedy none` is the paper-literal reward, `survival` pays (1 + a_T) / 2, `absorbing`
-   (default) adds DAC's absorbing states to the student's and the expert's data alike: a termination leads to
-   a self-looping state whose reward the trainer learns from D like any other pair's (see `store`).
+Implementation choices and deviations (the measurements behind each: docs/rile.md, one heading per choice)
+1. Rewards are never stored: r_S is the current trainer's deterministic action on every sampled student batch, r_T
+   comes from the current D on every trainer batch.
+2. The trainer's transition is (o_T, a_T, o_T'), a_T sampled when the student acts; o_T' = (s', a'_S) with a'_S a
+   fresh sample of the current student. Its episode ends where the student's does.
+3. The trainer's and D's buffers (16,384 each) are windows over the newest of the student's transitions.
+4. Discriminator: gail.py's (64-64 tanh, BCE, lr 3e-5, 32 + 32 pairs, one update per env step), the paper's gradient
+   penalty weight 1 in DAC's one-centred form (the paper names no form); `--disc-gp-center 0`, `--disc-normalize`.
+5. Freezing: the paper freezes the trainer "once its critic network converges" (threshold 0.1) and names no test.
+   Ours: a moving average of the critic's TD loss beyond its targets' own variance, relative to r_T's variance, below
+   0.1 for 10k steps, never before `--trainer-freeze-after` (3/4 of the run: 750k of the default 1M steps; on
+   Hopper-v4 and HalfCheetah-v4 this guard, not the test, sets the step). A frozen trainer learns again once that
+   error passes r_T's variance (`--trainer-release-threshold`; inf: the paper's one-way freeze); `--no-trainer-freeze`.
+6. Termination bias (the paper is silent): r_S = a_T < 0 pays for ending episodes. `--termination-remedy absorbing`
+   (default) adds DAC's absorbing states to student and expert data; `survival` pays (1 + a_T) / 2; `none`: the paper's.
 7. Epsilon-greedy (`--epsilon` 0.2). The trainer's temperature is the paper's fixed 0.2; the student's is tuned
-   towards -|A| (`--no-autotune`: 0.2, which pays more for entropy than r_S in [-1, 1] pays for imitation).
+   towards -|A| (`--no-autotune`: the paper's 0.2).
 8. A tenth of every trainer batch is expert pairs, each with a fresh a_T (`--trainer-expert-fraction 0.1`; 0 with
-   --state-only, whose demonstrations have no actions for o_T). The paper's best run has none (`--trainer-expert-fraction
-   0`); its explicit-expert-data experiment reports that expert data "accelerates RILe's convergence" and lowers the
-   final score. Without them the trainer is fitted on the student's pairs only and its reward is flat beyond them
-   (benchmarks/rile_follows_d.py): on Hopper-v4 it paid the demonstrations no more than the student's best pairs
-   and the student stood (0.30-0.33 in three 200k runs); with them r_S rises with D up to the demonstrations'
-   pairs and the student hops (docs/reward-that-teaches.md).
-9. The paper's experiments as flags: `--trainer-reward` (the ablation's six rewards); `--expert-action-noise` /
-   `--expert-state-noise` (noise added once to the demonstrations); `--reward-from runs/<run>/reward.pt` with
-   `--student-action-noise` (covariate shift: a fresh student against a saved, frozen trainer);
-   `--student-expert-fraction` / `--trainer-expert-fraction` (that share of each batch is expert pairs); the reward
-   measures every `--dynamics-freq` steps (below).
-10. From states only (`--state-only`, the paper's LocoMuJoCo regime): D scores (s, s') as in GAIfO. The trainer
-   still observes (s, a_S), of which s' = f(s, a_S) is a function; `--trainer-obs transition` makes it observe
-   (s, s'), with (s', s'') as stored next. Options that need expert actions are refused.
+   --state-only; the paper's best run: 0).
+9. The paper's experiments as flags: `--trainer-reward` (its six rewards), `--expert-action-noise`,
+   `--expert-state-noise`, `--reward-from` with `--student-action-noise` (covariate shift), `--student-expert-fraction`.
+10. From states only (`--state-only`): D scores (s, s') as in GAIfO; the trainer observes (s, a_S), or (s, s') with
+   `--trainer-obs transition`.
 11. The trainer's discount is 0.9 (`--trainer-gamma`; the paper's 0.99). Its action does not change its next
-   observation (o_T' = (s', a'_S) whatever a_T), so its best policy, a_T = v(D), is the same at any discount; the
-   discount only sets how far its critic bootstraps. At 0.99 its values span [0, 100]; on Walker2d-v4 its critic
-   diverged (Q-values -61), r_S stopped following D and the student stayed at 0.03-0.07 (2 seeds, 200k). At 0.9 its
-   Q-values stay at 8.1, r_S follows D at 0.93-0.99 to the end and the student reached 0.43 (seed 1; gail.py 0.42)
-   (docs/reward-that-teaches.md). A corner of its critic can still run away for a while at 0.9 (Hopper-v4 seed 2,
-   32-43k: values of -98 at 35k on 0.3 % of its window, recovered by 50k); `--trainer-gamma 0`, which leaves nothing to
-   bootstrap, is the cure to measure next.
+   observation, so its best policy, a_T = v(D), is the same at any discount; the discount sets how far its critic
+   bootstraps.
+12. The control (`--student-reward discriminator`, not in the paper): r_S = v(D) of the current D on every batch, no
+   trainer, all else as the defaults; what rile.py's results owe to the trainer is the gap between the two.
 
-Logged metrics: charts/episodic_return, charts/SPS, eval/return, eval/normalized_return,
-losses/{student,trainer}_{qf_loss,qf_values,qf_target_var,actor_loss,alpha_loss,alpha,entropy}, losses/disc_loss,
-losses/disc_gp, disc/expert_prob, disc/policy_prob, reward/learned_mean, reward/trainer_reward_mean,
-trainer/frozen, trainer/critic_loss_ema. Every --dynamics-freq steps, in TensorBoard (dynamics/<name>),
-dynamics.json and results.json ("reward_measures", beside "trainer_frozen_at"): r_s_demos, r_s_student and
-r_s_spread (r_S on the demonstrations' pairs, on the student's pairs of the interval, their difference),
-r_s_absorbing, d_demos and d_student (D on the same pairs), r_s_follows_d (Pearson of r_S and 2D - 1 on the
-student's pairs: whether the trainer passes on D's ranking), critic_loss, critic_loss_relative, critic_loss_to_reward
-and critic_excess_to_reward (the freeze test's statistics), rfdc, fs_rfdc, cpr (the paper's reward dynamics, as
-benchmarks/reward_dynamics.py measures them).
+Logged: charts/*, eval/{return,normalized_return}, losses/{student,trainer}_*, losses/disc_*, disc/*_prob, reward/*,
+trainer/{frozen,critic_loss_ema}; every --dynamics-freq steps the reward measures (r_S and D on demonstrations and
+student, r_s_follows_d, the freeze statistics, RFDC, FS-RFDC, CPR) in results.json: docs/rile.md.
 """
 
 import json
 import os
 import platform
 import random
+import shutil
 import signal
+import subprocess
 import sys
 import time
 from dataclasses import asdict, dataclass, fields, replace
+from importlib import metadata
 from typing import Literal, NamedTuple, Optional
 
 import gymnasium as gym
@@ -103,6 +62,7 @@ import torch
 import torch.nn as nn
 import torch.nn.functional as F
 import tyro
+
 
 @dataclass
 class Args:
@@ -162,8 +122,7 @@ class Args:
     epsilon: float = 0.2
     """probability that the student takes a uniform random action (epsilon-greedy)"""
     termination_remedy: Literal["none", "survival", "absorbing"] = "absorbing"
-    """none: r_S = a_T (paper); survival: r_S = (1 + a_T) / 2 >= 0, no reward for ending episodes early;
-    absorbing: r_S = a_T with DAC's absorbing states for student and expert data"""
+    """absorbing: DAC's absorbing states for student and expert; survival: r_S = (1 + a_T) / 2; none: the paper's"""
     eval_freq: int = 10_000
     """evaluate the deterministic policy every this many env steps"""
     eval_episodes: int = 10
@@ -171,8 +130,7 @@ class Args:
 
     # Trainer arguments
     student_reward: Literal["trainer", "discriminator"] = "trainer"
-    """trainer: r_S = a_T, the trainer's action (RILe); discriminator: the control, r_S = v(D) = 2D - 1 of the current
-    discriminator on every batch, no trainer built (header, choice 12)"""
+    """trainer: r_S = a_T (RILe); discriminator: the control, r_S = v(D) = 2D - 1, no trainer (header, choice 12)"""
     trainer_reward: Literal["difference", "exp-difference", "multiplication", "naive", "exp-naive",
                             "sigmoid"] = "exp-difference"
     """the trainer's reward (the paper's ablation); v(D) = 2D - 1"""
@@ -193,21 +151,21 @@ class Args:
     trainer_freeze: bool = True
     """freeze the trainer once its critic has converged (header, choice 5)"""
     trainer_freeze_stat: Literal["relative", "reward", "excess", "loss"] = "excess"
-    """relative: the trainer's critic loss over the variance of its targets; reward: over the variance of its reward r_T;
-    excess: what of it exceeds its targets' own sampling variance, over r_T's variance; loss: the raw critic loss"""
+    """the critic loss beyond its targets' own variance over r_T's (excess), all of it over r_T's (reward), over the
+    targets' (relative), raw (loss)"""
     trainer_freeze_threshold: float = 0.1
     """freeze when the moving average (0.99) of --trainer-freeze-stat stays below this"""
     trainer_freeze_window: int = 10_000
     """env steps the statistic must stay below the threshold (0: the first crossing freezes)"""
     trainer_freeze_after: Optional[int] = None
-    """never freeze before this env step (default: 3/4 of --total-timesteps, so 750k of the default 1M steps; on Hopper-v4
-    and HalfCheetah-v4 the test passes from 10-20k, so this guard sets the step; a resumed run keeps its freeze)"""
+    """never freeze before this env step (default: 3/4 of --total-timesteps, 750k of the default 1M; on Hopper-v4 and
+    HalfCheetah-v4 this guard, not the test, sets the step; a resumed run keeps its freeze)"""
     trainer_freeze_min_updates: int = 10_000
     """never freeze before this many trainer updates"""
     trainer_release_threshold: float = 1.0
-    """a frozen trainer learns again when the statistic, on D's current rewards, rises above this (inf: never)"""
+    """a frozen trainer learns again once the statistic on D's current rewards passes this (inf: never)"""
     trainer_obs: Literal["state-action", "transition"] = "state-action"
-    """what the trainer observes: the student's (s, a_S) (paper), or its transition (s, s') (needs --state-only)"""
+    """what the trainer observes: the student's (s, a_S) (paper), or (s, s') (needs --state-only)"""
 
     # Discriminator arguments
     disc_hidden_dim: int = 64
@@ -245,96 +203,16 @@ class Args:
     student_expert_fraction: float = 0.0
     """share of every student batch drawn from expert pairs (explicit-expert-data experiment)"""
     trainer_expert_fraction: Optional[float] = None
-    """share of every trainer batch drawn from expert pairs (default: 0.1, 0 with --state-only; the paper's best run: 0;
-    rile.py's header, choice 8)"""
+    """share of every trainer batch drawn from expert pairs (default: 0.1, 0 with --state-only; the paper's: 0)"""
     reward_from: Optional[str] = None
-    """covariate shift: train a fresh student against this saved, frozen reward (runs/<run>/reward.pt)"""
+    """covariate shift: a fresh student against this saved, frozen reward (runs/<run>/reward.pt)"""
     student_action_noise: float = 0.0
     """std of Gaussian noise added to the actions the student executes while training"""
     dynamics_freq: int = 10_000
-    """measure the learned reward every this many steps: r_S and D on demonstrations and student, RFDC, FS-RFDC, CPR
-    (0 disables)"""
+    """measure the learned reward every this many steps (r_S, D, RFDC, FS-RFDC, CPR; header); 0 disables"""
 
 
-# ALGO LOGIC: the discriminator (gail.py's), then RILe's rewards and update (a block drail_disc.py shares)
-# --- shared: discriminator ---
-class Discriminator(nn.Module):
-    """D(x) = sigmoid(logit(x)), expert = 1, trained with BCE and a gradient penalty on random interpolates of
-    expert and policy inputs: one-centred (gp_center 1, DAC's) or zero-centred (gp_center 0). Inputs are
-    standardised, (x - shift) / scale, and the penalty acts in those units: none by default; fixed `stats` (the
-    demonstrations', `input_stats`); or `pooled`: the running mean and variance of every training batch, expert
-    and policy inputs together, so that what separates the two is a few units whatever the env's scale."""
-
-    def __init__(self, in_dim: int, hidden_dim: int, lr: float, gp_weight: float, gp_center: float = 1.0,
-                 stats: Optional[tuple] = None, pooled: bool = False):
-        super().__init__()
-        self.net = nn.Sequential(
-            nn.Linear(in_dim, hidden_dim), nn.Tanh(), nn.Linear(hidden_dim, hidden_dim), nn.Tanh(), nn.Linear(hidden_dim, 1)
-        )
-        shift, scale = stats if stats is not None else (torch.zeros(in_dim), torch.ones(in_dim))
-        self.register_buffer("shift", torch.as_tensor(shift, dtype=torch.float32).clone())
-        self.register_buffer("scale", torch.as_tensor(scale, dtype=torch.float32).clone())
-        self.register_buffer("var", torch.ones(in_dim))  # pooled: the running variance behind `scale`
-        self.register_buffer("updates", torch.zeros(()))
-        self.gp_weight, self.gp_center, self.pooled = gp_weight, gp_center, pooled
-        self.optimizer = torch.optim.Adam(self.parameters(), lr=lr)
-
-    def forward(self, x):
-        return self.net((x - self.shift) / self.scale).squeeze(-1)
-
-    def load_state_dict(self, state: dict, strict: bool = True):
-        """Files saved before inputs could be standardised have no statistics: none then."""
-        return super().load_state_dict({"shift": torch.zeros_like(self.shift), "scale": torch.ones_like(self.scale),
-                                        "var": torch.ones_like(self.var), "updates": torch.zeros(())} | dict(state), strict)
-
-    @torch.no_grad()
-    def update_stats(self, x):
-        """pooled: move shift and scale towards the batch's mean and variance (a plain average over the first 1,000
-        batches, then a moving average with rate 0.001); a column constant so far keeps scale 1."""
-        self.updates += 1
-        rate = (1.0 / self.updates).clamp(min=1e-3)
-        self.shift.lerp_(x.mean(0), rate)
-        self.var.lerp_(x.var(0), rate)
-        self.scale.copy_(torch.where(self.var > 1e-12, self.var.sqrt(), 1.0))
-
-    def loss(self, expert_x, policy_x):
-        """BCE(D(expert), 1) + BCE(D(policy), 0) + gp_weight * E[(||grad_z logit(z_hat)|| - gp_center)^2], z the
-        standardised inputs."""
-        expert_z, policy_z = (expert_x - self.shift) / self.scale, (policy_x - self.shift) / self.scale
-        expert_logits, policy_logits = self.net(expert_z).squeeze(-1), self.net(policy_z).squeeze(-1)
-        bce = F.binary_cross_entropy_with_logits(expert_logits, torch.ones_like(expert_logits))
-        bce = bce + F.binary_cross_entropy_with_logits(policy_logits, torch.zeros_like(policy_logits))
-        eps = torch.rand(len(expert_x), 1, device=expert_x.device)
-        z_hat = (eps * expert_z + (1 - eps) * policy_z).requires_grad_(True)
-        grad = torch.autograd.grad(self.net(z_hat).sum(), z_hat, create_graph=True)[0]
-        gp = (grad.norm(2, dim=1) - self.gp_center).pow(2).mean()
-        return bce + self.gp_weight * gp, bce, gp, torch.sigmoid(expert_logits).mean(), torch.sigmoid(policy_logits).mean()
-
-    def update(self, expert_x, policy_x) -> dict:
-        if self.pooled:
-            self.update_stats(torch.cat([expert_x, policy_x]))
-        loss, bce, gp, expert_prob, policy_prob = self.loss(expert_x, policy_x)
-        self.optimizer.zero_grad(set_to_none=False)
-        loss.backward()
-        self.optimizer.step()
-        metrics = {"losses/disc_loss": bce, "losses/disc_gp": gp, "disc/expert_prob": expert_prob,
-                   "disc/policy_prob": policy_prob}
-        return {name: value.detach() for name, value in metrics.items()}
-
-    @torch.no_grad()
-    def prob(self, x):
-        return torch.sigmoid(self(x))
-
-
-def input_stats(x):
-    """Per-column mean and std of D's inputs on the demonstrations, for `--disc-normalize demos`; a column that is
-    constant there (an absorbing indicator the demonstrations never set) is left as it is."""
-    mean, std = x.mean(0), x.std(0)
-    varies = std > 1e-6
-    return torch.where(varies, mean, 0.0), torch.where(varies, std, 1.0)
-# --- end shared: discriminator ---
-
-
+# ALGO LOGIC: RILe's update and rewards (a block drail_disc.py shares), then the discriminator (gail.py's)
 # --- shared: rile ---
 def rile_update(student: "SAC", trainer: "SAC", disc: nn.Module, rb: "ReplayBuffer", expert: dict, args,
                 state: dict, step: int) -> dict:
@@ -348,11 +226,13 @@ def rile_update(student: "SAC", trainer: "SAC", disc: nn.Module, rb: "ReplayBuff
     # (1) student: SAC on r_S = the current trainer's action on o_T = (s, a_S); with no trainer (the control), on v(D)
     batch = mix_expert(rb.sample(args.batch_size), expert, args.student_expert_fraction)
     if trainer is None:
-        r_student = discriminator_reward(disc, torch.cat([batch.obs, getattr(batch, seen)], -1), args.termination_remedy)
+        d_input = torch.cat([batch.obs, getattr(batch, seen)], -1)
+        r_student = discriminator_reward(disc, d_input, args.termination_remedy)
     else:
         obs_trainer = trainer_input(batch.obs, batch.actions, batch.next_obs, args.trainer_obs)
         r_student = student_reward(trainer.actor, obs_trainer, args.termination_remedy)
-    metrics = student.update(batch.obs, batch.actions, batch.next_obs, r_student, batch.terminations, prefix="losses/student_")
+    metrics = student.update(batch.obs, batch.actions, batch.next_obs, r_student, batch.terminations,
+                             prefix="losses/student_")
     metrics["reward/learned_mean"] = r_student.mean()
     if state["reward_only"]:
         return metrics
@@ -362,41 +242,24 @@ def rile_update(student: "SAC", trainer: "SAC", disc: nn.Module, rb: "ReplayBuff
         policy = rb.sample(args.disc_batch_size, recent=args.disc_buffer_size)
         metrics |= disc.update(torch.cat([expert["obs"][idx], expert[seen][idx]], -1),
                                torch.cat([policy.obs, getattr(policy, seen)], -1))
+    # (3) trainer: SAC on its recent transitions (o_T, a_T as stored, o_T'), r_T from the current discriminator, then
+    # the freeze test. A frozen trainer is only watched, every 10 steps, on a forked random stream (as if unwatched)
     frozen = state["frozen_at"] is not None
     if trainer is None or (frozen and (step % 10 or args.trainer_release_threshold == float("inf"))):
         return metrics
-    # (3) trainer: SAC on its recent transitions (o_T, a_T as stored, o_T'), r_T from the current discriminator. A frozen
-    # trainer is only watched, every 10 steps (its critics' loss, which may release it: freeze_test), with the random
-    # stream restored after it, so that the run is the same as with no watching until it is released
-    devices = [torch.cuda.current_device()] if expert["obs"].is_cuda else []
-    with torch.random.fork_rng(devices, enabled=frozen):
+    with torch.random.fork_rng([torch.cuda.current_device()] if rb.storage.is_cuda else [], enabled=frozen):
         idx = rb.indices(args.trainer_batch_size, recent=args.trainer_buffer_size)
         batch = mix_expert(rb.batch(idx), expert, args.trainer_expert_fraction, trainer, args.trainer_obs)
         obs_trainer, a_trainer = trainer_input(batch.obs, batch.actions, batch.next_obs, args.trainer_obs), batch.extra
-
-        def next_obs_trainer():  # o_T' = (s', s'') as the student went on, or (s', a'_S) with a fresh a'_S (choice 2)
-            if args.trainer_obs == "transition":
-                return torch.cat([batch.next_obs, successor_next_obs(rb, idx, batch)], -1)
-            return torch.cat([batch.next_obs, student.policy(batch.next_obs)[0]], -1)
+        next_obs_trainer = lambda: trainer_next_obs(student, rb, idx, batch, args.trainer_obs)  # o_T' (choice 2)
         with torch.no_grad():
             d = disc.prob(torch.cat([batch.obs, getattr(batch, seen)], -1))
             r_trainer = TRAINER_REWARDS[args.trainer_reward](d, a_trainer.squeeze(-1))
             o_next = next_obs_trainer()
-        if frozen:
-            with torch.no_grad():
-                loss, _, target_var = trainer.critic_loss(obs_trainer, a_trainer, o_next, r_trainer, batch.terminations)
-            metrics |= {"losses/trainer_qf_loss": loss, "losses/trainer_qf_target_var": target_var}
-        else:
-            metrics |= trainer.update(obs_trainer, a_trainer, o_next, r_trainer, batch.terminations, prefix="losses/trainer_")
+        transitions = (obs_trainer, a_trainer, o_next, r_trainer, batch.terminations)
+        metrics |= watch(trainer, *transitions) if frozen else trainer.update(*transitions, prefix="losses/trainer_")
         metrics["reward/trainer_reward_mean"] = r_trainer.mean()
-        if step % 10 == 0:  # the TD targets' own variance over a'_S and a'_T, a part of the TD loss no critic can remove:
-            # two more draws, with the random stream restored after them so that they change nothing else in the run
-            with torch.random.fork_rng(devices), torch.no_grad():
-                y1, y2 = (trainer.td_target(next_obs_trainer(), r_trainer, batch.terminations) for _ in range(2))
-            noise, prev = 0.5 * (y1 - y2).pow(2).mean(), state["target_noise_ema"]
-            state["target_noise_ema"] = torch.where(prev.isfinite(), torch.lerp(prev, noise, 0.1), noise)
-        freeze_test(metrics["losses/trainer_qf_loss"], metrics["losses/trainer_qf_target_var"], r_trainer.var(), args, state,
-                    step)
+        track_freeze(trainer, metrics, r_trainer, batch.terminations, next_obs_trainer, args, state, step)
     return metrics
 
 
@@ -444,7 +307,8 @@ def trainer_acts(trainer: "SAC", obs, action, next_obs, terminated: bool, absorb
     s_abs = absorbing_state(len(obs))
     indicated = (lambda s: np.append(s, 0.0)) if absorbing else (lambda s: s)  # env states: indicator 0
     sees = lambda s, a, s_next: np.concatenate([s, s_next if trainer_obs == "transition" else a])
-    a_trainer = trainer.actor.act(sees(indicated(obs), action, s_abs if absorbing and terminated else indicated(next_obs)))
+    s_next = s_abs if absorbing and terminated else indicated(next_obs)
+    a_trainer = trainer.actor.act(sees(indicated(obs), action, s_next))
     return a_trainer, trainer.actor.act(sees(s_abs, np.zeros_like(action), s_abs)) if absorbing and terminated else ()
 
 
@@ -455,6 +319,14 @@ def successor_next_obs(rb: "ReplayBuffer", idx, batch: "Batch"):
     following = rb.batch((idx + 1) % rb.capacity)
     continues = (following.obs == batch.next_obs).all(-1, keepdim=True) & ((idx + 1) % rb.capacity != rb.pos)[:, None]
     return torch.where(continues, following.next_obs, batch.next_obs)
+
+
+def trainer_next_obs(student: "SAC", rb: "ReplayBuffer", idx, batch: "Batch", trainer_obs: str):
+    """o_T' for the trainer's batch: (s', a'_S) with a'_S a fresh sample of the current student (choice 2), or (s', s'')
+    as the student went on with --trainer-obs transition."""
+    if trainer_obs == "transition":
+        return torch.cat([batch.next_obs, successor_next_obs(rb, idx, batch)], -1)
+    return torch.cat([batch.next_obs, student.policy(batch.next_obs)[0]], -1)
 
 
 def mix_expert(batch: "Batch", expert: dict, fraction: float, trainer: Optional["SAC"] = None, trainer_obs: str = ""):
@@ -473,6 +345,27 @@ def mix_expert(batch: "Batch", expert: dict, fraction: float, trainer: Optional[
     return batch
 
 
+def watch(trainer: "SAC", obs, actions, next_obs, rewards, terminations) -> dict:
+    """A frozen trainer's critic loss on D's current rewards, without an update (what may release it: freeze_test)."""
+    with torch.no_grad():
+        loss, _, target_var = trainer.critic_loss(obs, actions, next_obs, rewards, terminations)
+    return {"losses/trainer_qf_loss": loss, "losses/trainer_qf_target_var": target_var}
+
+
+def track_freeze(trainer: "SAC", metrics: dict, r_trainer, terminations, next_obs_trainer, args, state: dict,
+                 step: int) -> None:
+    """The freeze's bookkeeping after each trainer update (or watch): every 10 steps the TD targets' own variance over
+    a'_S and a'_T, a part of the TD loss no critic can remove, from two more draws on a forked random stream (so that
+    they change nothing else in the run); then freeze_test."""
+    if step % 10 == 0:
+        with torch.random.fork_rng([torch.cuda.current_device()] if r_trainer.is_cuda else []), torch.no_grad():
+            y1, y2 = (trainer.td_target(next_obs_trainer(), r_trainer, terminations) for _ in range(2))
+        noise, prev = 0.5 * (y1 - y2).pow(2).mean(), state["target_noise_ema"]
+        state["target_noise_ema"] = torch.where(prev.isfinite(), torch.lerp(prev, noise, 0.1), noise)
+    loss, target_var = metrics["losses/trainer_qf_loss"], metrics["losses/trainer_qf_target_var"]
+    freeze_test(loss, target_var, r_trainer.var(), args, state, step)
+
+
 def freeze_test(critic_loss, target_var, reward_var, args, state: dict, step: int) -> None:
     """Freeze the trainer "once its critic network converges" (the paper's appendix; its threshold, not its test).
     The statistic (--trainer-freeze-stat, see freeze_statistic) is a moving average (0.99) over updates (over the
@@ -484,7 +377,7 @@ def freeze_test(critic_loss, target_var, reward_var, args, state: dict, step: in
     training"). A frozen trainer is watched (rile_update): once its critics' statistic on D's current rewards passes
     --trainer-release-threshold, it has stopped fitting them (the student has moved where the fixed reward is
     wrong), and it learns again."""
-    ema = lambda name, x: torch.where(state[name].isfinite(), torch.lerp(state[name], x, 0.01), x)  # inf: no average yet
+    ema = lambda name, x: torch.where(state[name].isfinite(), torch.lerp(state[name], x, 0.01), x)  # inf: none yet
     for name, x in (("critic_loss_ema", critic_loss), ("target_var_ema", target_var), ("reward_var_ema", reward_var)):
         state[name] = ema(name, x)
     state["trainer_updates"] += state["frozen_at"] is None
@@ -495,7 +388,8 @@ def freeze_test(critic_loss, target_var, reward_var, args, state: dict, step: in
         if statistic > args.trainer_release_threshold:
             state["released_at"].append(step)
             state["frozen_at"] = state["below_since"] = None
-            print(f"trainer released at step {step} ({args.trainer_freeze_stat} critic loss {statistic:.4f})", flush=True)
+            print(f"trainer released at step {step} ({args.trainer_freeze_stat} critic loss {statistic:.4f})",
+                  flush=True)
         return
     if statistic >= args.trainer_freeze_threshold:
         state["below_since"] = None
@@ -539,9 +433,91 @@ def check_rile_args(args):
             raise SystemExit(f"error: --{name.replace('_', '-')} must lie in [0, 1]")
     for name in ("expert_action_noise", "student_expert_fraction", "trainer_expert_fraction"):
         if args.state_only and given[name] > 0:
-            raise SystemExit(f"error: --{name.replace('_', '-')} needs the expert's actions, which --state-only does not use")
+            raise SystemExit(f"error: --{name.replace('_', '-')} needs the expert's actions, which --state-only "
+                             "does not use")
     return args
 # --- end shared: rile ---
+
+
+# --- shared: discriminator ---
+class Discriminator(nn.Module):
+    """D(x) = sigmoid(logit(x)), expert = 1, trained with BCE and a gradient penalty on random interpolates of
+    expert and policy inputs: one-centred (gp_center 1, DAC's) or zero-centred (gp_center 0). Inputs are
+    standardised, (x - shift) / scale, and the penalty acts in those units: none by default; fixed `stats` (the
+    demonstrations', `input_stats`); or `pooled`: the running mean and variance of every training batch, expert
+    and policy inputs together, so that what separates the two is a few units whatever the env's scale."""
+
+    def __init__(self, in_dim: int, hidden_dim: int, lr: float, gp_weight: float, gp_center: float = 1.0,
+                 stats: Optional[tuple] = None, pooled: bool = False):
+        super().__init__()
+        self.net = nn.Sequential(
+            nn.Linear(in_dim, hidden_dim), nn.Tanh(), nn.Linear(hidden_dim, hidden_dim), nn.Tanh(),
+            nn.Linear(hidden_dim, 1)
+        )
+        shift, scale = stats if stats is not None else (torch.zeros(in_dim), torch.ones(in_dim))
+        self.register_buffer("shift", torch.as_tensor(shift, dtype=torch.float32).clone())
+        self.register_buffer("scale", torch.as_tensor(scale, dtype=torch.float32).clone())
+        self.register_buffer("var", torch.ones(in_dim))  # pooled: the running variance behind `scale`
+        self.register_buffer("updates", torch.zeros(()))
+        self.gp_weight, self.gp_center, self.pooled = gp_weight, gp_center, pooled
+        self.optimizer = torch.optim.Adam(self.parameters(), lr=lr)
+
+    def forward(self, x):
+        return self.net((x - self.shift) / self.scale).squeeze(-1)
+
+    def load_state_dict(self, state: dict, strict: bool = True):
+        """Files saved before inputs could be standardised have no statistics: none then."""
+        none = {"shift": torch.zeros_like(self.shift), "scale": torch.ones_like(self.scale),
+                "var": torch.ones_like(self.var), "updates": torch.zeros(())}
+        return super().load_state_dict(none | dict(state), strict)
+
+    @torch.no_grad()
+    def update_stats(self, x):
+        """pooled: move shift and scale towards the batch's mean and variance (a plain average over the first 1,000
+        batches, then a moving average with rate 0.001); a column constant so far keeps scale 1."""
+        self.updates += 1
+        rate = (1.0 / self.updates).clamp(min=1e-3)
+        self.shift.lerp_(x.mean(0), rate)
+        self.var.lerp_(x.var(0), rate)
+        self.scale.copy_(torch.where(self.var > 1e-12, self.var.sqrt(), 1.0))
+
+    def loss(self, expert_x, policy_x):
+        """BCE(D(expert), 1) + BCE(D(policy), 0) + gp_weight * E[(||grad_z logit(z_hat)|| - gp_center)^2], z the
+        standardised inputs."""
+        expert_z, policy_z = (expert_x - self.shift) / self.scale, (policy_x - self.shift) / self.scale
+        expert_logits, policy_logits = self.net(expert_z).squeeze(-1), self.net(policy_z).squeeze(-1)
+        bce = F.binary_cross_entropy_with_logits(expert_logits, torch.ones_like(expert_logits))
+        bce = bce + F.binary_cross_entropy_with_logits(policy_logits, torch.zeros_like(policy_logits))
+        eps = torch.rand(len(expert_x), 1, device=expert_x.device)
+        z_hat = (eps * expert_z + (1 - eps) * policy_z).requires_grad_(True)
+        grad = torch.autograd.grad(self.net(z_hat).sum(), z_hat, create_graph=True)[0]
+        gp = (grad.norm(2, dim=1) - self.gp_center).pow(2).mean()
+        expert_prob, policy_prob = torch.sigmoid(expert_logits).mean(), torch.sigmoid(policy_logits).mean()
+        return bce + self.gp_weight * gp, bce, gp, expert_prob, policy_prob
+
+    def update(self, expert_x, policy_x) -> dict:
+        if self.pooled:
+            self.update_stats(torch.cat([expert_x, policy_x]))
+        loss, bce, gp, expert_prob, policy_prob = self.loss(expert_x, policy_x)
+        self.optimizer.zero_grad(set_to_none=False)
+        loss.backward()
+        self.optimizer.step()
+        metrics = {"losses/disc_loss": bce, "losses/disc_gp": gp, "disc/expert_prob": expert_prob,
+                   "disc/policy_prob": policy_prob}
+        return {name: value.detach() for name, value in metrics.items()}
+
+    @torch.no_grad()
+    def prob(self, x):
+        return torch.sigmoid(self(x))
+
+
+def input_stats(x):
+    """Per-column mean and std of D's inputs on the demonstrations, for `--disc-normalize demos`; a column that is
+    constant there (an absorbing indicator the demonstrations never set) is left as it is."""
+    mean, std = x.mean(0), x.std(0)
+    varies = std > 1e-6
+    return torch.where(varies, mean, 0.0), torch.where(varies, std, 1.0)
+# --- end shared: discriminator ---
 
 
 # --- shared: reward measures ---
@@ -571,7 +547,8 @@ def reward_measures(reward, disc_prob, rb: "ReplayBuffer", expert: dict, absorbi
            "r_s_follows_d": None if np.isnan(follows) else follows, "r_s_absorbing": None, **(extra or {}),
            "rfdc": float(np.abs(np.sort(r_student) - np.sort(last_student)).mean())
            if last_student is not None and len(last_student) == n else None,
-           "fs_rfdc": float(np.abs(r_demos - last_demos).mean()) if last_demos is not None and r_demos is not None else None,
+           "fs_rfdc": float(np.abs(r_demos - last_demos).mean())
+           if last_demos is not None and r_demos is not None else None,
            "cpr": None if np.isnan(cpr) else cpr}
     if out["r_s_demos"] is not None:
         out["r_s_spread"] = out["r_s_demos"] - out["r_s_student"]
@@ -600,12 +577,15 @@ def rile_measures(trainer: "SAC", disc: "Discriminator", rb: "ReplayBuffer", exp
         o_t = trainer_input(data["obs"], data.get("actions"), data["next_obs"], args.trainer_obs)
         return student_reward(trainer.actor, o_t, args.termination_remedy)
     learning = state["trainer_updates"] > 0
-    extra = {"trainer_frozen_at": state["frozen_at"], "critic_loss": state["critic_loss_ema"].item() if learning else None,
+    extra = {"trainer_frozen_at": state["frozen_at"],
+             "critic_loss": state["critic_loss_ema"].item() if learning else None,
              "critic_loss_relative": freeze_statistic(state, "relative") if learning else None,
              "critic_loss_to_reward": freeze_statistic(state, "reward") if learning else None,
-             "critic_excess_to_reward": x if learning and (x := freeze_statistic(state, "excess")) < float("inf") else None}
+             "critic_excess_to_reward": x if learning and (x := freeze_statistic(state, "excess")) < float("inf")
+             else None}
     return reward_measures(r_student, lambda data: disc.prob(d_input(data)), rb, expert,
-                           args.termination_remedy == "absorbing", measures, step, min(args.dynamics_freq, rb.size), extra)
+                           args.termination_remedy == "absorbing", measures, step, min(args.dynamics_freq, rb.size),
+                           extra)
 
 
 def reward_file(trainer: Optional["SAC"], disc: "Discriminator", args, obs_dim: int, act_dim: int) -> dict:
@@ -685,16 +665,13 @@ def make_env(env_id: str, seed: int, render_mode: Optional[str] = None) -> gym.E
 
 
 def seed_everything(seed: int, torch_deterministic: bool = True) -> None:
-    random.seed(seed)
-    np.random.seed(seed)
-    torch.manual_seed(seed)
+    random.seed(seed), np.random.seed(seed), torch.manual_seed(seed)
     torch.backends.cudnn.deterministic = torch_deterministic
 # --- end shared: env ---
 
 
 # --- shared: actor ---
-LOG_STD_MAX = 2
-LOG_STD_MIN = -5
+LOG_STD_MIN, LOG_STD_MAX = -5, 2
 
 
 class Actor(nn.Module):
@@ -703,7 +680,8 @@ class Actor(nn.Module):
 
     def __init__(self, obs_dim: int, act_dim: int, action_low, action_high, hidden_dim: int = 256):
         super().__init__()
-        self.net = nn.Sequential(nn.Linear(obs_dim, hidden_dim), nn.ReLU(), nn.Linear(hidden_dim, hidden_dim), nn.ReLU())
+        self.net = nn.Sequential(nn.Linear(obs_dim, hidden_dim), nn.ReLU(), nn.Linear(hidden_dim, hidden_dim),
+                                 nn.ReLU())
         self.fc_mean, self.fc_logstd = nn.Linear(hidden_dim, act_dim), nn.Linear(hidden_dim, act_dim)
         low, high = torch.as_tensor(action_low, dtype=torch.float32), torch.as_tensor(action_high, dtype=torch.float32)
         self.register_buffer("action_scale", (high - low) / 2.0)
@@ -751,8 +729,7 @@ def actor_file(actor: Actor, env_id: str, **extra) -> dict:
 
 # --- shared: critic ---
 class TwinQ(nn.Module):
-    """Two Q-networks as one module: every weight has a leading dimension of 2, so each layer of both critics
-    is one batched matmul. forward returns Q-values of shape (2, batch)."""
+    """Two Q-networks as one module, each weight with a leading dimension of 2 (a batched matmul); Q of shape (2, B)."""
 
     def __init__(self, obs_dim: int, act_dim: int, hidden_dim: int = 256, num_q: int = 2):
         super().__init__()
@@ -775,10 +752,9 @@ class TwinQ(nn.Module):
 
 # --- shared: sac ---
 class SAC:
-    """Actor, twin critics, target critics and the temperature, with their optimisers; one `update` per env
-    step. absorbing=True (DAC's absorbing states, `--termination-remedy absorbing`): observations carry a last
-    indicator column, 1 at the absorbing state that follows a termination. The actor never sees it; at the
-    absorbing state the only action is zero, so it has no entropy term and no actor or temperature loss."""
+    """Actor, twin critics, target critics and the temperature, with their optimisers; one `update` per env step.
+    absorbing=True (DAC's absorbing states): observations carry a last indicator column, 1 at the absorbing state
+    after a termination, which the actor never sees; there the only action is zero: no entropy, actor or alpha loss."""
 
     def __init__(self, obs_dim, act_dim, action_low, action_high, args, device, absorbing: bool = False):
         self.absorbing, self.gamma, self.tau, self.target_entropy = absorbing, args.gamma, args.tau, -float(act_dim)
@@ -789,7 +765,8 @@ class SAC:
         self.log_alpha = torch.tensor(float(np.log(args.alpha)), device=device, requires_grad=args.autotune)
         self.q_optimizer = torch.optim.Adam(self.qf.parameters(), lr=args.q_lr, fused=True)
         self.actor_optimizer = torch.optim.Adam(self.actor.parameters(), lr=args.policy_lr, fused=True)
-        self.alpha_optimizer = torch.optim.Adam([self.log_alpha], lr=args.policy_lr, fused=True) if args.autotune else None
+        self.alpha_optimizer = (torch.optim.Adam([self.log_alpha], lr=args.policy_lr, fused=True) if args.autotune
+                                else None)
 
     def policy(self, obs):
         """a ~ pi(.|s) and log pi(a|s); with absorbing states, a = 0 and log pi = 0 where s is absorbing."""
@@ -829,7 +806,6 @@ class SAC:
         self.q_optimizer.zero_grad(set_to_none=False)
         qf_loss.backward()
         self.q_optimizer.step()
-
         actor_loss, alpha_loss, entropy = self.actor_loss(obs)
         self.actor_optimizer.zero_grad(set_to_none=False)
         if self.alpha_optimizer is not None:
@@ -945,8 +921,9 @@ def load_demonstrations(path: str, env: gym.Env, num_trajs: Optional[int] = None
             fail(f"hold {len(data['episode_lengths'])} episodes, fewer than --num-expert-trajs {num_trajs}",
                  "pass a smaller --num-expert-trajs")
         end = int(data["episode_starts"][num_trajs - 1] + data["episode_lengths"][num_trajs - 1])
-        data |= {k: data[k][: num_trajs if k.startswith("episode_") else end] for k in (*DEMO_KEYS, "actions") if k in data}
-    if "random_return" not in meta:  # files from before issue 31: measured now (`demos.py info --add-random-return`)
+        data |= {k: data[k][: num_trajs if k.startswith("episode_") else end]
+                 for k in (*DEMO_KEYS, "actions") if k in data}
+    if "random_return" not in meta:  # older files: measured now (`demos.py info --add-random-return` stores it)
         meta["random_return"] = random_return(env_id)
         print(f"{path}: no random-policy return in its metadata; uniform actions return {meta['random_return']:.1f}")
     return data | {"metadata": meta}
@@ -956,8 +933,7 @@ def load_demonstrations(path: str, env: gym.Env, num_trajs: Optional[int] = None
 # --- shared: expert data ---
 def expert_tensors(demos: dict, seed: int, device, state_noise: float = 0.0, action_noise: float = 0.0,
                    action_low=None, action_high=None) -> dict:
-    """The expert transitions as tensors, with the noise of the noise-robustness experiment added once (actions
-    clipped to the box; no "actions" from state-only demonstrations)."""
+    """The expert transitions as tensors, the noise-robustness experiment's noise added once (actions in the box)."""
     rng = np.random.default_rng(seed + 1)
     obs, next_obs, actions = demos["observations"], demos["next_observations"], demos.get("actions")
     if state_noise > 0:
@@ -973,8 +949,7 @@ def expert_tensors(demos: dict, seed: int, device, state_noise: float = 0.0, act
 
 # --- shared: evaluation ---
 def evaluate(act, env_id: str, num_episodes: int, seed: int, capture_video_dir: Optional[str] = None) -> list:
-    """Returns of the deterministic policy on its own env; episode i starts from reset(seed=seed + i), so
-    every evaluation of a run sees the same start states."""
+    """Returns of the deterministic policy on its own env, episode i from reset(seed=seed + i): the same starts."""
     env = make_env(env_id, seed, render_mode="rgb_array" if capture_video_dir else None)
     if capture_video_dir:
         env = gym.wrappers.RecordVideo(env, capture_video_dir, episode_trigger=lambda ep: ep == 0, disable_logger=True)
@@ -997,22 +972,21 @@ def random_return(env_id: str, num_episodes: int = 10, seed: int = 100_000) -> f
 
 
 def normalized_score(ret: float, random: Optional[float], expert: Optional[float]) -> Optional[float]:
-    """(R - R_random) / (R_expert - R_random): 0 for random actions, 1 for the demonstrations (D4RL's convention);
-    None where either is unknown or the expert is no better than random."""
+    """(R - R_random) / (R_expert - R_random), D4RL's: 0 random, 1 the demonstrations; None if unknown or not above."""
     return (ret - random) / (expert - random) if random is not None and expert is not None and expert > random else None
 # --- end shared: evaluation ---
 
 
 # --- shared: run ---
 class Run:
-    """The run's directory (config.json, TensorBoard, results.json with `extra` added), an evaluation every --eval-freq
-    steps, and its `Checkpoints` (every `checkpoint_freq` steps, 0: none; on Ctrl-C / SIGTERM; --resume)."""
+    """The run's directory (config.json, TensorBoard, results.json with `extra`), evaluations, its `Checkpoints`."""
 
-    def __init__(self, args, checkpoint: Optional[dict], stateful: dict, expert_return: Optional[float], device,
-                 checkpoint_freq: int = 0, random_return: Optional[float] = None):
+    def __init__(self, args, checkpoint: Optional[dict], stateful: dict, demos: Optional[dict], device,
+                 checkpoint_freq: int = 0):
         self.args, self.extra, self.evals, self.start_step, self.sps = args, {}, [], 0, 0.0
-        self.expert_return = expert_return if expert_return is not None and np.isfinite(expert_return) else None
-        self.random_return = random_return  # the normalized score's 0 (the expert's return is its 1)
+        returns = demos["episode_returns"] if demos else np.array([np.nan])  # the normalized score's 1 (random's: 0)
+        self.expert_return = float(returns.mean()) if np.isfinite(returns.mean()) else None
+        self.random_return = demos["metadata"]["random_return"] if demos else None
         self.name = checkpoint["run_name"] if checkpoint else args.run_name or \
             f"{args.env_id}__{args.exp_name}__{args.seed}__{int(time.time())}"
         self.dir = os.path.join("runs", self.name)
@@ -1021,7 +995,10 @@ class Run:
         self.writer, self.machine = tensorboard(args, self.name, self.dir), machine(device)
         self.start_time = time.time()  # time.time() - start_time: the run's wall time (a resumed run's included)
         self.checkpoints = Checkpoints(self, stateful, checkpoint_freq, checkpoint, device)
-        self.tick = (self.start_step, time.perf_counter())  # where SPS counts from
+        self.tick, self.shown, self.tty = (self.start_step, time.perf_counter()), 0.0, sys.stdout.isatty()
+        expert = f"{len(returns)} demonstration episodes, return {returns.mean():.1f} | " if demos else ""
+        print(f"{'resumed ' * bool(checkpoint)}{self.dir} at step {self.start_step} of {args.total_timesteps} | "
+              f"{args.env_id} | {expert}{device}, threads {torch.get_num_threads()}", flush=True)
 
     def log(self, metrics: dict, step: int) -> None:
         for name, value in metrics.items():
@@ -1030,23 +1007,35 @@ class Run:
 
     def end_step(self, step: int, act) -> None:
         """After env step `step` (counted from 1): an evaluation every --eval-freq steps, a checkpoint when due."""
+        self.sps = (step - self.tick[0]) / (time.perf_counter() - self.tick[1])  # since the last evaluation
         if step % self.args.eval_freq == 0 or step == self.args.total_timesteps:
-            self.sps = (step - self.tick[0]) / (time.perf_counter() - self.tick[1])  # since the last evaluation
             self.evaluate(step, act)
             self.tick = (step, time.perf_counter())
+        elif self.tty and time.perf_counter() - self.shown > 10:
+            self.show(step)
         self.checkpoints.end_step(step)
 
     def evaluate(self, step: int, act) -> None:
-        """--eval-episodes of the deterministic policy: logged, written to results.json, printed in one line."""
+        """--eval-episodes of the deterministic policy: logged, written to results.json, shown."""
         returns = evaluate(act, self.args.env_id, self.args.eval_episodes, seed=self.args.seed + 100_000)
         mean, std = float(np.mean(returns)), float(np.std(returns))
         normalized = normalized_score(mean, self.random_return, self.expert_return)
         self.evals.append({"step": step, "mean": mean, "std": std, "normalized": normalized})
         self.log({"eval/return": mean, "eval/normalized_return": normalized, "charts/SPS": self.sps}, step)
         self.write_results(finished=False)
-        versus = f" = {normalized:.2f} normalized (random 0, expert 1)" if normalized is not None else ""
-        print(f"step {step}/{self.args.total_timesteps} | {self.sps:.0f} SPS | {(time.time() - self.start_time) / 60:.0f} "
-              f"min | eval return {mean:.1f} +- {std:.1f}{versus}", flush=True)
+        self.show(step)
+
+    def show(self, step: int) -> None:
+        """One line: steps, SPS, minutes so far and left, the latest evaluation (on a terminal, rewritten in place)."""
+        total, last = self.args.total_timesteps, self.evals[-1] if self.evals else None
+        line = (f"step {step}/{total} | {self.sps:.0f} SPS | {(time.time() - self.start_time) / 60:.0f} min, "
+                f"{(total - step) / max(self.sps, 1e-6) / 60:.0f} min left")
+        if last:
+            score = f" = {last['normalized']:.2f} normalized" if last["normalized"] is not None else ""
+            line += f" | eval at {last['step']}: return {last['mean']:.1f} +- {last['std']:.1f}{score}"
+        stays = not self.tty or (last is not None and last["step"] == step)
+        print(f"\r{line}\033[K" if self.tty else line, end="\n" if stays else "", flush=True)
+        self.shown = time.perf_counter()
 
     def write_results(self, finished: bool) -> None:
         """results.json: the run's config, its evaluation curve and where it ran (format in docs/sweeps.md)."""
@@ -1055,7 +1044,8 @@ class Run:
             "algo": self.args.exp_name, "env_id": self.args.env_id, "seed": self.args.seed, "finished": finished,
             "evals": self.evals, "final_return": final.get("mean"), "final_normalized_return": final.get("normalized"),
             "random_return": self.random_return, "expert_return": self.expert_return, "sps": self.sps,
-            "wall_time_s": time.time() - self.start_time, "machine": self.machine, "config": asdict(self.args)} | self.extra)
+            "wall_time_s": time.time() - self.start_time, "machine": self.machine, "config": asdict(self.args),
+        } | self.extra)
 
     def finish(self, act, models: dict) -> None:
         """The last checkpoint and results.json, the models (unless --no-save-model), a video (--capture-video)."""
@@ -1065,7 +1055,7 @@ class Run:
         for filename, content in models.items() if self.args.save_model else ():
             save_file(os.path.join(self.dir, filename), content)
         if self.args.capture_video:
-            evaluate(act, self.args.env_id, 1, self.args.seed + 100_000, capture_video_dir=os.path.join(self.dir, "videos"))
+            evaluate(act, self.args.env_id, 1, self.args.seed + 100_000, os.path.join(self.dir, "videos"))
         self.writer.close()
         print(f"done: {self.args.total_timesteps} steps in {(time.time() - self.start_time) / 60:.1f} min: {self.dir}")
 
@@ -1084,8 +1074,10 @@ class Checkpoints:
                     obj.load_state_dict(checkpoint[name])
             run.evals, run.start_step = checkpoint["evals"], checkpoint["step"]
             run.start_time -= checkpoint["wall_time"]
-            set_rng_state(checkpoint["rng"])
-            print(f"resumed {run.dir} at step {run.start_step}")
+            rng = checkpoint["rng"]
+            random.setstate(rng["python"]), np.random.set_state(rng["numpy"]), torch.set_rng_state(rng["torch"])
+            if rng["cuda"] is not None and torch.cuda.is_available():
+                torch.cuda.set_rng_state_all(rng["cuda"])
         signal.signal(signal.SIGINT, self.on_signal), signal.signal(signal.SIGTERM, self.on_signal)
 
     def on_signal(self, signum, frame):
@@ -1109,7 +1101,9 @@ class Checkpoints:
     def save(self, step: int) -> None:
         run, state = self.run, {name: dict(obj) if isinstance(obj, dict) else obj.state_dict()
                                 for name, obj in self.stateful.items()}
-        save_file(os.path.join(run.dir, "checkpoint.pt"), state | dict(step=step, evals=run.evals, rng=rng_state(),
+        rng = {"python": random.getstate(), "numpy": np.random.get_state(), "torch": torch.get_rng_state(),
+               "cuda": torch.cuda.get_rng_state_all() if torch.cuda.is_available() else None}
+        save_file(os.path.join(run.dir, "checkpoint.pt"), state | dict(step=step, evals=run.evals, rng=rng,
                   wall_time=time.time() - run.start_time, config=asdict(run.args), run_name=run.name))
 
 
@@ -1121,12 +1115,13 @@ def tensorboard(args, name: str, run_dir: str):
                    config=vars(args), name=name, id=name, resume="allow", save_code=True)
     from torch.utils.tensorboard import SummaryWriter
     writer = SummaryWriter(run_dir)
-    writer.add_text("hyperparameters", "|param|value|\n|-|-|\n" + "\n".join(f"|{k}|{v}|" for k, v in asdict(args).items()))
+    table = "\n".join(f"|{k}|{v}|" for k, v in asdict(args).items())
+    writer.add_text("hyperparameters", "|param|value|\n|-|-|\n" + table)
     return writer
 
 
 def save_file(path: str, obj) -> None:
-    """torch.save for .pt files, JSON otherwise, through a temporary file: a run killed while saving keeps the old one."""
+    """torch.save for .pt files, JSON otherwise, through a temporary file: a run killed while saving keeps the old."""
     if path.endswith(".pt"):
         torch.save(obj, path + ".tmp")
     else:
@@ -1135,35 +1130,20 @@ def save_file(path: str, obj) -> None:
     os.replace(path + ".tmp", path)
 
 
-def rng_state() -> dict:
-    return {"python": random.getstate(), "numpy": np.random.get_state(), "torch": torch.get_rng_state(),
-            "cuda": torch.cuda.get_rng_state_all() if torch.cuda.is_available() else None}
-
-
-def set_rng_state(rng: dict) -> None:
-    random.setstate(rng["python"]), np.random.set_state(rng["numpy"]), torch.set_rng_state(rng["torch"])
-    if rng["cuda"] is not None and torch.cuda.is_available():
-        torch.cuda.set_rng_state_all(rng["cuda"])
-
-
 def machine(device) -> dict:
-    """What decides a run's numbers besides its config: versions, CPU, threads, device, and the code's git commit
-    ("-dirty" with uncommitted changes; None outside a git checkout)."""
-    from importlib.metadata import version
-    from shutil import which
-    from subprocess import run
+    """What decides a run's numbers besides its config: versions, CPU, threads, device, the code's commit ("-dirty")."""
     cpuinfo = open("/proc/cpuinfo").read().splitlines() if os.path.exists("/proc/cpuinfo") else []
-    cpu = next((line.split(":", 1)[1].strip() for line in cpuinfo if line.startswith("model name")), platform.processor())
-    git = run(["git", "describe", "--always", "--dirty", "--abbrev=12"], capture_output=True, text=True,
-              cwd=os.path.dirname(os.path.abspath(__file__))).stdout.strip() if which("git") else ""
+    models = (line.split(":", 1)[1].strip() for line in cpuinfo if line.startswith("model name"))
+    cpu = next(models, platform.processor())
+    git = subprocess.run(["git", "describe", "--always", "--dirty", "--abbrev=12"], capture_output=True, text=True,
+                         cwd=os.path.dirname(os.path.abspath(__file__))).stdout.strip() if shutil.which("git") else ""
     return {"host": platform.node(), "cpu": cpu, "cpu_capability": torch.backends.cpu.get_cpu_capability(),
             "threads": torch.get_num_threads(), "device": str(device), "python": platform.python_version(),
-            **{name: version(name) for name in ("torch", "numpy", "gymnasium", "mujoco")}, "git": git or None}
+            **{name: metadata.version(name) for name in ("torch", "numpy", "gymnasium", "mujoco")}, "git": git or None}
 
 
 def resume(args, keep=("total_timesteps", "cuda", "threads")):
-    """--resume: the saved checkpoint, and the saved run's config with the fields in `keep` taken from the command
-    line where given there."""
+    """--resume: the saved checkpoint, and its run's config with the fields in `keep` from the command line if given."""
     path = os.path.join(args.resume, "checkpoint.pt") if os.path.isdir(args.resume) else args.resume
     if not os.path.isfile(path):
         raise SystemExit(f"error: no checkpoint at '{path}'; pass --resume runs/<run> of a run that saved one")
@@ -1187,7 +1167,8 @@ if __name__ == "__main__":
     env = make_env(args.env_id, args.seed)
     obs_dim, act_dim = env.observation_space.shape[0], env.action_space.shape[0]
     low, high = env.action_space.low, env.action_space.high
-    demos = load_demonstrations(args.expert_path or f"experts/{args.env_id}.npz", env, args.num_expert_trajs, args.state_only)
+    demos = load_demonstrations(args.expert_path or f"experts/{args.env_id}.npz", env, args.num_expert_trajs,
+                                args.state_only)
     expert = expert_tensors(demos, args.seed, device, args.expert_state_noise, args.expert_action_noise, low, high)
     absorbing = args.termination_remedy == "absorbing"
     if absorbing:
@@ -1196,7 +1177,7 @@ if __name__ == "__main__":
     # ALGO LOGIC: the student, the trainer, the discriminator and one buffer (a_T in its extra column)
     aug_dim = obs_dim + absorbing  # with absorbing states, every stored observation has the indicator column
     student = SAC(aug_dim, act_dim, low, high, args, device, absorbing=absorbing)
-    trainer = make_trainer(aug_dim, act_dim, args, device) if args.student_reward == "trainer" else None  # None: the control
+    trainer = make_trainer(aug_dim, act_dim, args, device) if args.student_reward == "trainer" else None  # the control
     seen = "next_obs" if args.state_only else "actions"  # what D sees beside s
     stats = input_stats(torch.cat([expert["obs"], expert[seen]], -1)) if args.disc_normalize == "demos" else None
     disc = Discriminator(aug_dim + (aug_dim if args.state_only else act_dim), args.disc_hidden_dim, args.disc_lr,
@@ -1209,8 +1190,7 @@ if __name__ == "__main__":
     measures = {"interval": None, "demos": None, "history": []}  # reward_measures' memory
     stateful = {"student": student, "disc": disc, "disc_optimizer": disc.optimizer, "replay_buffer": rb, "rile": state,
                 "measures": measures} | ({"trainer": trainer} if trainer is not None else {})
-    run = Run(args, checkpoint, stateful, float(demos["episode_returns"].mean()), device,
-              checkpoint_freq=args.checkpoint_freq, random_return=demos["metadata"]["random_return"])
+    run = Run(args, checkpoint, stateful, demos, device, checkpoint_freq=args.checkpoint_freq)
     run.extra = {"trainer_frozen_at": state["frozen_at"], "trainer_released_at": state["released_at"],
                  "reward_measures": measures["history"]}
 
@@ -1223,13 +1203,14 @@ if __name__ == "__main__":
             action = student.actor.act(obs)
         executed = action
         if args.student_action_noise > 0:
-            executed = np.clip(action + np.random.normal(0, args.student_action_noise, act_dim), low, high).astype(np.float32)
+            noise = np.random.normal(0, args.student_action_noise, act_dim)
+            executed = np.clip(action + noise, low, high).astype(np.float32)
         next_obs, reward, terminated, truncated, info = env.step(executed)
         a_trainer, a_trainer_absorbing = (), ()  # the control: no trainer acts
         if trainer is not None:
             a_trainer, a_trainer_absorbing = trainer_acts(trainer, obs, action, next_obs, terminated, absorbing,
                                                           args.trainer_obs)
-        store(rb, obs, action, next_obs, reward, terminated, absorbing, a_trainer, a_trainer_absorbing)  # env reward: CPR only
+        store(rb, obs, action, next_obs, reward, terminated, absorbing, a_trainer, a_trainer_absorbing)  # reward: CPR
         obs = next_obs
         if terminated or truncated:
             episode = info["episode"]
@@ -1241,7 +1222,8 @@ if __name__ == "__main__":
             metrics = rile_update(student, trainer, disc, rb, expert, args, state, global_step)
             if global_step % 1000 == 0:
                 frozen = float(state["frozen_at"] is not None)
-                run.log(metrics | {"trainer/critic_loss_ema": state["critic_loss_ema"], "trainer/frozen": frozen}, global_step)
+                metrics |= {"trainer/critic_loss_ema": state["critic_loss_ema"], "trainer/frozen": frozen}
+                run.log(metrics, global_step)
 
         step = global_step + 1
         if args.dynamics_freq and step % args.dynamics_freq == 0 and step > args.learning_starts:
@@ -1252,6 +1234,7 @@ if __name__ == "__main__":
         run.end_step(step, student.actor.act)
 
     run.extra["trainer_frozen_at"] = state["frozen_at"]
-    run.finish(student.actor.act, {"actor.pt": actor_file(student.actor, args.env_id, training_steps=args.total_timesteps),
+    actor = actor_file(student.actor, args.env_id, training_steps=args.total_timesteps)
+    run.finish(student.actor.act, {"actor.pt": actor,
                                    "reward.pt": reward_file(trainer, disc, args, obs_dim, act_dim)})
     env.close()

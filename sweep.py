@@ -2,19 +2,19 @@
 
     python sweep.py --scripts rile.py gail.py --env-ids Hopper-v4 --seeds 1 2 3 --total-timesteps 200000
     python sweep.py --status            # which jobs are done, running, interrupted or waiting
-    python sweep.py --report            # tables, learning curves, and the README's results section
+    python sweep.py --report            # tables, curves: the defaults in the README, every tag in docs/results.md
     python sweep.py ... --launcher slurm --partition gpu --time 720 --cpus 4 --gpus 1
 
 Each job (script x env x seed) runs as its own process, `python <script> --env-id E --seed S
 --total-timesteps T --run-name bench__<E>__<algo>__<S> <extra args>`, writing to runs/<run-name>/.
 A job whose results file exists for the same --total-timesteps is skipped; a job with a checkpoint but no
-such result is resumed (so a longer sweep extends shorter runs)
-(`--resume runs/<run-name>`), so a sweep spread over several sessions simply continues: run the same
-command again. Arguments that sweep.py does not know pass through to the scripts; give such a
-variant its own `--tag` so that its results do not collide with the default's.
+such result is resumed (`--resume runs/<run-name>`), so a longer sweep extends shorter runs and a sweep
+spread over several sessions simply continues: run the same command again. Arguments that sweep.py does
+not know pass through to the scripts; give such a variant its own `--tag` so that its results do not
+collide with the default's.
 
-Results: each finished run's results.json (the format every script writes, see README) is copied to
-benchmarks/results/<env-id>/<algo>__<seed>.json, with the command that produced it.
+Results: each finished run's results.json (the format every script writes) is copied to
+benchmarks/results/<env-id>/<algo>__<seed>.json, with the command that produced it. Details: docs/sweeps.md
 """
 
 import argparse
@@ -35,6 +35,43 @@ ROOT = os.path.dirname(os.path.abspath(__file__))
 RESULTS_DIR = os.path.join(ROOT, "benchmarks", "results")
 RUNS_DIR = "runs"  # relative to the working directory, as the scripts write it
 README_START, README_END = "<!-- benchmark:start -->", "<!-- benchmark:end -->"
+DOCS_PAGE = "docs/results.md"  # beside the README: the generated page of every tag
+
+# Which results tags ran today's defaults, and the name their row has in the README. A results file is
+# benchmarks/results/<env-id>/<script stem>-<tag>__<seed>.json (`sweep.py --scripts S --tag T`); the README's results
+# section shows only the tags listed here, under these names, grouped by script in this order; docs/results.md shows
+# every tag. A tag is listed when its files' "config" equals the script's current Args defaults in everything but the
+# run's length and evaluation (--total-timesteps, --learning-starts, --eval-freq, --eval-episodes, --threads,
+# --checkpoint-freq) and the number of demonstrations, which the row's name then states. When a default changes, run
+# the new defaults under a new tag and point the entry at it: the old tag's rows stay in docs/results.md.
+DEFAULT_ROWS = {
+    ("rile.py", "paperD"): "rile.py defaults",
+    ("rile.py", "paperD-control"): "rile.py control: r_S = v(D), no trainer",  # --student-reward discriminator
+    ("gail.py", "paperD-autotune"): "gail.py defaults",
+    ("airl.py", ""): "airl.py defaults",
+    ("gaifo.py", ""): "gaifo.py defaults",  # ran before the --disc-* flags existed, with the paper's D they default to
+    ("iqlearn.py", "chi2-policy"): "iqlearn.py defaults",  # Hopper-v4's preset; tag `iqlearn`: chi^2 replay
+    ("bc.py", "10demos"): "bc.py defaults with 10 demonstrations",  # tag `bc` (25) ran --loss nll
+    ("bco.py", ""): "bco.py defaults",
+    # Pendulum-v1: every script from 10 demonstrations, 15k steps, learning from step 2,000 (ENV_NOTES)
+    ("rile.py", "10demos-paperD"): "rile.py defaults with 10 demonstrations",
+    ("gail.py", "10demos-paperD-autotune"): "gail.py defaults with 10 demonstrations",
+    ("airl.py", "10demos"): "airl.py defaults with 10 demonstrations",
+    ("gaifo.py", "10demos"): "gaifo.py defaults with 10 demonstrations",
+    ("iqlearn.py", "10demos-chi2replay"): "iqlearn.py defaults with 10 demonstrations",  # the preset for unlisted envs
+    # Not listed, so in docs/results.md only: drail_disc.py (every run at --disc-hidden-dim 256; the default is 1024)
+    # and bco.py on Pendulum-v1 (--pre-demo-steps 5000 --iterations 100, to fit 15k steps).
+}
+DEFAULT_NAMES = {(os.path.splitext(script)[0] + (f"-{tag}" if tag else "")): name
+                 for (script, tag), name in DEFAULT_ROWS.items()}  # results-file algo -> row name
+SCRIPT_ORDER = list(dict.fromkeys(script for script, _ in DEFAULT_ROWS))  # README rows: by script, then as listed
+# The line under every README table: which seeds chose the defaults, so that a reader can tell tuned from held-out.
+SELECTION_NOTE = "Seeds 1 and 2 of rile.py and gail.py were used to choose the defaults; seeds 3 and 4 were not."
+ENV_NOTES = {  # a line under an env's README table, where its runs differ from the others' protocol
+    "Pendulum-v1": "Pendulum-v1 checks the defaults on a task without terminations, actions in [-2, 2]: 10 "
+                   "demonstrations of this project's SAC expert, 15k env steps, learning from step 2,000 (iqlearn.py's "
+                   "preset for envs its paper does not list was chosen on these three seeds).",
+}
 
 # The RILe paper's MuJoCo table (v2 envs, 25 demonstrations, mean +- s.e.), by env and script.
 PAPER = {
@@ -156,7 +193,8 @@ def collect(job: Job, results: dict, cmd: List[str], results_dir: str) -> str:
 
 def print_status(jobs: List[Job], results_dir: str = RESULTS_DIR) -> None:
     states = [job_state(j, results_dir) for j in jobs]
-    print(f"{len(jobs)} jobs: " + ", ".join(f"{states.count(s)} {s}" for s in ("done", "running", "interrupted", "waiting")))
+    print(f"{len(jobs)} jobs: " + ", ".join(f"{states.count(s)} {s}"
+                                            for s in ("done", "running", "interrupted", "waiting")))
     for job, state in zip(jobs, states):
         print(f"  {state:<11} {job.run_name:<50} {last_eval(job)}")
 
@@ -260,7 +298,7 @@ def normalized_score(ret: float, random_return: Optional[float], expert_return: 
 
 
 def random_return_of(r: dict) -> Optional[float]:
-    """A results file's random-policy return: its own (since issue 31), else the one in the metadata of the
+    """A results file's random-policy return: its own, else (older files) the one in the metadata of the
     demonstrations it names (experts/<env-id>.npz by default), so that older files are re-normalised."""
     if r.get("random_return") is not None:
         return r["random_return"]
@@ -278,25 +316,26 @@ def random_return_of(r: dict) -> Optional[float]:
 _RANDOM_RETURNS = {}  # demonstration file -> its random_return
 
 
-def last_quarter(r: dict, normalize: bool) -> float:
-    """The mean of one run's evaluations in the last quarter of its steps (after 150k of 200k: five at the default
-    10k): a steadier number than the final evaluation where evaluations swing from one to the next (Hopper-v4)."""
+def last_quarter(r: dict, normalize: bool, worst: bool = False) -> float:
+    """The mean (or, `worst`, the lowest) of one run's evaluations in the last quarter of its steps (after 150k of
+    200k: its last five at the default 10k): steadier than the final evaluation where evaluations swing (Hopper-v4)."""
     end = r["evals"][-1]["step"]
     means = [e["mean"] for e in r["evals"] if e["step"] > 0.75 * end]
     if normalize:
         means = [normalized_score(m, random_return_of(r), r.get("expert_return")) for m in means]
-    return float(np.mean(means))
+    return float(np.min(means) if worst else np.mean(means))
 
 
 def summarize(runs: list) -> dict:
     finals = [r["final_return"] for r in runs]
-    normalized = [n for r in runs if (n := normalized_score(r["final_return"], random_return_of(r), r.get("expert_return")))
-                  is not None]
+    normalized = [normalized_score(r["final_return"], random_return_of(r), r.get("expert_return")) for r in runs]
+    normalized = [n for n in normalized if n is not None]
     score = normalized if len(normalized) == len(runs) else finals
     lo, hi = bootstrap_ci(score)
     return {"n": len(runs), "return": mean_se(finals), "normalized": mean_se(normalized) if normalized else None,
             "iqm": iqm(score), "iqm_ci": (lo, hi), "iqm_of": "normalized" if score is normalized else "return",
             "last_quarter": mean_se([last_quarter(r, score is normalized) for r in runs]),
+            "worst": min(last_quarter(r, score is normalized, worst=True) for r in runs),
             "steps": max(r["evals"][-1]["step"] for r in runs),
             "wall_h": float(np.mean([r["wall_time_s"] for r in runs])) / 3600,
             "seeds": sorted(r["seed"] for r in runs)}
@@ -307,51 +346,69 @@ def fmt(pair, digits=1) -> str:
     return f"{m:.{digits}f}" if math.isnan(se) else f"{m:.{digits}f} ± {se:.{digits}f}"
 
 
-def env_table(env_id: str, algos: dict) -> str:
+def default_name(algo: str) -> Optional[str]:
+    """The README's name of a row of today's defaults ("rile.py defaults (500k)" for "rile-paperD (500k)"), or None."""
+    base, _, length = algo.partition(" (")
+    return DEFAULT_NAMES[base] + (f" ({length}" if length else "") if base in DEFAULT_NAMES else None
+
+
+def default_rows(algos: dict) -> dict:
+    """The rows of today's defaults, keyed by results-file algo: by script (SCRIPT_ORDER), then as DEFAULT_ROWS lists
+    them, then by length (as load_results orders them)."""
+    keys = {algo: (SCRIPT_ORDER.index(script), i)
+            for i, ((script, _), algo) in enumerate(zip(DEFAULT_ROWS, DEFAULT_NAMES))}
+    rows = [algo for algo in algos if default_name(algo)]
+    return {algo: algos[algo] for algo in sorted(rows, key=lambda a: keys[a.partition(" (")[0]])}
+
+
+def env_table(env_id: str, algos: dict, names: Optional[dict] = None) -> str:
+    """One row per algo (named names[algo] where given); the paper's column is that of the algo's script."""
     paper = PAPER.get(env_id.split("-")[0], {})
-    lines = ["| algorithm | seeds | final return | normalized | IQM [95% CI] | last quarter | steps | wall time (h) "
-             "| paper (v2) |", "|---|---|---|---|---|---|---|---|---|"]
-    for algo, runs in algos.items():  # by name, then by length
+    lines = ["| algorithm | seeds | final return | normalized | IQM [95% CI] | last quarter | worst | steps "
+             "| wall time (h) | paper (v2) |", "|---|---|---|---|---|---|---|---|---|---|"]
+    for algo, runs in algos.items():  # in the order given
         s = summarize(runs)
         norm = fmt(s["normalized"], 3) if s["normalized"] else "-"
         digits = 3 if s["iqm_of"] == "normalized" else 1
-        lines.append(f"| {algo} | {s['n']} | {fmt(s['return'])} | {norm} | {s['iqm']:.{digits}f} "
+        name = (names or {}).get(algo, algo)
+        lines.append(f"| {name} | {s['n']} | {fmt(s['return'])} | {norm} | {s['iqm']:.{digits}f} "
                      f"[{s['iqm_ci'][0]:.{digits}f}, {s['iqm_ci'][1]:.{digits}f}] | {fmt(s['last_quarter'], digits)} | "
-                     f"{s['steps']} | {s['wall_h']:.2f} | "
-                     f"{paper.get(algo.split(' ')[0].split('-')[0], '-')} |")
+                     f"{s['worst']:.{digits}f} | {s['steps']} | {s['wall_h']:.2f} | "
+                     f"{'-' if 'control' in algo else paper.get(algo.split(' ')[0].split('-')[0], '-')} |")
     return "\n".join(lines)
 
 
 VERSION_KEYS = ("torch", "numpy", "gymnasium", "mujoco", "cpu", "cpu_capability")
 
 
-def version_note(algos: dict) -> str:
+def version_note(algos: dict, names: Optional[dict] = None) -> str:
     """A line saying which versions and CPUs the rows of one table came from, when they are not all the same
-    (results files from before issue 30 record only torch's version)."""
+    (older results files record only torch's version)."""
     seen = {}
     for algo, runs in algos.items():
         for r in runs:
             machine = r.get("machine") or {}
             key = ", ".join(f"{k} {machine[k]}" for k in VERSION_KEYS if machine.get(k)) or "no versions recorded"
-            seen.setdefault(key, set()).add(algo)
+            seen.setdefault(key, set()).add((names or {}).get(algo, algo))
     if len(seen) < 2:
         return ""
-    return "Versions differ between these rows: " + "; ".join(f"{key} ({', '.join(sorted(a))})" for key, a in seen.items())
+    return "Versions differ between these rows: " + "; ".join(f"{key} ({', '.join(sorted(a))})"
+                                                                for key, a in seen.items())
 
 
-def plot_env(env_id: str, algos: dict, path: str) -> None:
+def plot_env(env_id: str, algos: dict, path: str, names: Optional[dict] = None) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(8, 4))
-    for i, (algo, runs) in enumerate(algos.items()):  # by name, then by length
+    for i, (algo, runs) in enumerate(algos.items()):  # in the order given
         steps = sorted(set.intersection(*[{e["step"] for e in r["evals"]} for r in runs]))  # steps every seed has
         curves = np.array([[{e["step"]: e["mean"] for e in r["evals"]}[s] for s in steps] for r in runs])
         mean, color = curves.mean(0), plt.cm.tab10(i % 10)  # past ten curves the colours repeat, dashed
         ax.plot(steps, mean, color=color, ls="-" if i < 10 else "--",
-                label=f"{algo} ({len(runs)} seed{'s' if len(runs) > 1 else ''})")
+                label=f"{(names or {}).get(algo, algo)} ({len(runs)} seed{'s' if len(runs) > 1 else ''})")
         if len(runs) > 1:
             se = curves.std(0, ddof=1) / math.sqrt(len(runs))
             ax.fill_between(steps, mean - se, mean + se, color=color, alpha=0.25)
@@ -362,41 +419,91 @@ def plot_env(env_id: str, algos: dict, path: str) -> None:
     if random_returns:
         ax.axhline(np.mean(random_returns), color="k", ls=":", lw=1, label="random actions")
     ax.set(title=env_id, xlabel="env steps", ylabel="evaluation return (mean ± s.e. over seeds)")
+    ax.xaxis.set_major_formatter(lambda x, _: f"{x / 1000:g}k")  # 200k, not 200000 running into its neighbour
     ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1))  # beside the axes, off the curves
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)
 
 
-def report(results_dir: str = RESULTS_DIR, readme: Optional[str] = os.path.join(ROOT, "README.md")) -> str:
-    grouped, bad = load_results(results_dir)
+COLUMNS = ("Final return: the last deterministic evaluation of each seed, mean ± standard error over seeds; "
+           "normalized: (return - random) / (expert - random), 0 for uniform random actions and 1 for the "
+           "demonstrations' mean return (D4RL's convention); IQM: interquartile mean over seeds with a "
+           "95% percentile-bootstrap interval; last quarter: the mean of each seed's evaluations after 3/4 of its "
+           "steps (its last five of a 200k run; normalized where the IQM is), then mean ± standard error over seeds; "
+           "worst: the lowest of those evaluations over all seeds; steps: env steps, "
+           "except bc.py's (gradient steps, no env interaction). Paper: the RILe paper's "
+           "MuJoCo table (v2 envs, its own training length).\n")
+
+
+def all_tags_text(grouped: dict, bad: list, results_dir: str, page_dir: str) -> str:
+    """Every tag of every env, today's defaults named as well; image links relative to page_dir."""
     parts = []
     for env_id, algos in grouped.items():
-        png = os.path.join(results_dir, f"{env_id}.png")
-        plot_env(env_id, algos, png)
-        rel_png = os.path.relpath(png, os.path.dirname(readme) if readme else results_dir)
+        names = {algo: f"{algo} ({default_name(algo)})" for algo in algos if default_name(algo)}
+        png = os.path.relpath(os.path.join(results_dir, f"{env_id}-all.png"), page_dir)
         note = version_note(algos)
-        parts.append(f"### {env_id}\n\n{env_table(env_id, algos)}\n\n" + (f"{note}\n\n" if note else "")
-                     + f"![{env_id} learning curves]({rel_png})\n")
-    text = "\n".join(parts) or "No results yet.\n"
-    text += ("\nFinal return: the last deterministic evaluation of each seed, mean ± standard error over seeds; "
-             "normalized: (return - random) / (expert - random), 0 for uniform random actions and 1 for the "
-             "demonstrations' mean return (D4RL's convention); IQM: interquartile mean over seeds with a "
-             "95% percentile-bootstrap interval; last quarter: the mean of each seed's evaluations after 3/4 of its "
-             "steps (normalized where the IQM is), then mean ± standard error over seeds; steps: env steps, "
-             "except bc.py's (gradient steps, no env interaction). Paper: the RILe paper's "
-             "MuJoCo table (v2 envs, its own training length).\n")
+        parts.append(f"### {env_id}\n\n{env_table(env_id, algos, names)}\n\n" + (f"{note}\n\n" if note else "")
+                     + f"![{env_id} learning curves, every tag]({png})\n")
+    text = ("\n".join(parts) or "No results yet.\n") + "\n" + COLUMNS
     if bad:
         text += "\nResults files skipped:\n" + "".join(f"- {b}\n" for b in bad)
-        for b in bad:
-            print(f"warning: skipped {b}", file=sys.stderr)
+    return text
+
+
+def defaults_text(grouped: dict, results_dir: str, page_dir: str) -> str:
+    """The README's section: today's defaults only (DEFAULT_ROWS), by their row names; links relative to page_dir."""
+    parts = []
+    for env_id, algos in grouped.items():
+        rows = default_rows(algos)
+        if not rows:
+            continue
+        names = {algo: default_name(algo) for algo in rows}
+        png = os.path.relpath(os.path.join(results_dir, f"{env_id}.png"), page_dir)
+        note = version_note(rows, names)
+        lines = [ENV_NOTES.get(env_id, ""), SELECTION_NOTE, f"Learning curves: [{env_id}.png]({png}).",
+                 f"{note}." if note else ""]
+        parts.append(f"### {env_id}\n\n{env_table(env_id, rows, names)}\n\n" + "".join(f"{x}\n" for x in lines if x))
+    return (("\n".join(parts) or "No results with today's defaults yet.\n") + "\n" + COLUMNS
+            + f"\nEvery other configuration that was run, and these under their tags: [{DOCS_PAGE}]({DOCS_PAGE}).\n")
+
+
+DOCS_HEAD = ("# Results of every configuration run\n\n"
+             "Generated by `python sweep.py --report` from `benchmarks/results/`; do not edit by hand. Rows are named "
+             "by their results files, `<script>-<tag>`: each file holds the command that made it and every flag "
+             "(`config`). Rows of today's defaults carry their README name in parentheses; the README shows only "
+             "those. Other tags ran earlier defaults or variants; how the defaults came to be: "
+             "[history.md](history.md).\n\n")
+
+
+def report(results_dir: str = RESULTS_DIR, readme: Optional[str] = os.path.join(ROOT, "README.md")) -> str:
+    """Tables and learning curves of every results file. results_dir/REPORT.md and, beside the README,
+    docs/results.md show every tag (curves in <env-id>-all.png); the README's section between its markers shows
+    today's defaults only (DEFAULT_ROWS, curves in <env-id>.png). Returns REPORT.md's text."""
+    grouped, bad = load_results(results_dir)
+    for env_id, algos in grouped.items():
+        plot_env(env_id, algos, os.path.join(results_dir, f"{env_id}-all.png"))
+        rows, png = default_rows(algos), os.path.join(results_dir, f"{env_id}.png")
+        if rows:
+            plot_env(env_id, rows, png, {algo: default_name(algo) for algo in rows})
+        elif os.path.exists(png):
+            os.remove(png)  # a curve of defaults that are no longer listed
+    for b in bad:
+        print(f"warning: skipped {b}", file=sys.stderr)
+    text = all_tags_text(grouped, bad, results_dir, results_dir)
     with open(os.path.join(results_dir, "REPORT.md"), "w") as f:
         f.write(text)
     if readme and os.path.exists(readme):
+        readme_dir = os.path.dirname(os.path.abspath(readme))
+        docs_page = os.path.join(readme_dir, DOCS_PAGE)
+        os.makedirs(os.path.dirname(docs_page), exist_ok=True)
+        with open(docs_page, "w") as f:
+            f.write(DOCS_HEAD + all_tags_text(grouped, bad, results_dir, os.path.dirname(docs_page)))
         content = open(readme).read()
         if README_START in content and README_END in content:
             head, rest = content.split(README_START, 1)
-            content = head + README_START + "\n" + text + rest[rest.index(README_END):]
+            section = defaults_text(grouped, results_dir, readme_dir)
+            content = head + README_START + "\n" + section + rest[rest.index(README_END):]
             with open(readme, "w") as f:
                 f.write(content)
     return text
@@ -418,7 +525,8 @@ def main(argv=None):
     parser.add_argument("--wait", action=argparse.BooleanOptionalAction, default=True,
                         help="with a submitit launcher, wait for the jobs and collect their results")
     parser.add_argument("--status", action="store_true", help="show the sweep's jobs and exit")
-    parser.add_argument("--report", action="store_true", help="write tables, curves and the README section")
+    parser.add_argument("--report", action="store_true",
+                        help="write tables and curves: today's defaults in the README, every tag in docs/results.md")
     parser.add_argument("--results-dir", default=RESULTS_DIR)
     args, extra = parser.parse_known_args(argv)
     if args.report:

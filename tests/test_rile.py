@@ -491,6 +491,7 @@ def test_end_to_end_every_update_path_then_covariate_shift(run, tmp_path):
               "--trainer-freeze-stat", "loss", "--student-expert-fraction", "0.25", "--trainer-expert-fraction", "0.25",
               "--expert-action-noise", "0.1").stdout
     assert "trainer frozen at step 400" in out  # 200 trainer updates after learning starts at 200
+    assert out.startswith("runs/r at step 0 of 600 | InvertedPendulum-v4 | 2 demonstration episodes, return 1000.0 | cpu")
     results = json.loads((tmp_path / "runs/r/results.json").read_text())
     assert results["finished"] and results["expert_return"] == pytest.approx(1000.0)
     assert [e["step"] for e in results["evals"]] == [300, 600]
@@ -569,6 +570,34 @@ def test_a_resume_that_extends_the_run_keeps_its_freeze(run, tmp_path):
     results = json.loads((tmp_path / "runs/fr/results.json").read_text())
     assert results["finished"] and results["trainer_frozen_at"] == 300 and results["config"]["total_timesteps"] == 800
     assert torch.load(tmp_path / "runs/fr/checkpoint.pt", weights_only=False)["rile"]["trainer_updates"] == 101
+
+
+def test_a_run_says_what_it_runs_then_shows_progress(tmp_path, monkeypatch, capsys):
+    """The start line (run directory, step, env, demonstrations, device, threads); on a terminal a progress line every
+    10 s rewritten in place, kept at each evaluation; elsewhere one line per evaluation only."""
+    monkeypatch.chdir(tmp_path)
+    args = tiny_args(env_id="InvertedPendulum-v4", total_timesteps=100, eval_freq=50, eval_episodes=1, run_name="alive")
+    demos = {"episode_returns": np.array([1000.0, 990.0]), "metadata": {"random_return": 5.0}}
+    run = rile.Run(args, None, {}, demos, "cpu")
+    out = capsys.readouterr().out
+    assert out.startswith("runs/alive at step 0 of 100 | InvertedPendulum-v4 | 2 demonstration episodes, return 995.0 | "
+                          "cpu, threads ") and run.expert_return == 995.0 and run.random_return == 5.0
+    act = lambda obs, deterministic: np.zeros(1, dtype=np.float32)
+    run.tty = True
+    run.end_step(1, act)  # nothing shown yet: a progress line at once
+    run.end_step(2, act)  # within 10 s of it: nothing
+    progress = capsys.readouterr().out
+    assert progress.startswith("\rstep 1/100 | ") and progress.endswith("min left\033[K") and "\n" not in progress
+    run.end_step(50, act)  # an evaluation: its line stays
+    evaluation = capsys.readouterr().out
+    assert evaluation.startswith("\rstep 50/100 | ") and "| eval at 50: return " in evaluation and evaluation.endswith("\n")
+    run.tty, run.shown = False, 0.0  # not a terminal (a log): evaluations only
+    run.end_step(51, act)
+    assert capsys.readouterr().out == ""
+    run.end_step(100, act)
+    line = capsys.readouterr().out
+    assert line.startswith("step 100/100 | ") and "eval at 100: return " in line and " normalized" in line
+    run.writer.close()
 
 
 def test_absorbing_states_end_to_end(run, tmp_path):

@@ -2,6 +2,7 @@
 
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -71,24 +72,63 @@ def test_report_table_plot_and_readme(results_dir, tmp_path):
     text = sweep.report(str(results_dir), readme=str(readme))
     # gail: finals 1000, 2000, 3000 -> 2000 +- 577.4 (s.d. 1000 / sqrt 3); normalized 0.5 +- 0.144
     # last quarter: the evaluations after 3/4 of the steps, here the final one alone
-    assert "| gail | 3 | 2000.0 ± 577.4 | 0.500 ± 0.144 | 0.500 [0.250, 0.750] | 0.500 ± 0.144 | 2000 | 2.00 | 3361 |" in text
-    assert "| rile | 1 | 3500.0 | 1.000 | 1.000 [1.000, 1.000] | 1.000 | 3000 | 1.00 | 3417 |" in text
-    png = results_dir / "Hopper-v4.png"
+    # worst: the lowest of those evaluations over all seeds (gail's seed 1: 0.25)
+    assert "| gail | 3 | 2000.0 ± 577.4 | 0.500 ± 0.144 | 0.500 [0.250, 0.750] | 0.500 ± 0.144 | 0.250 | 2000 | 2.00 | 3361 |" in text
+    assert "| rile | 1 | 3500.0 | 1.000 | 1.000 [1.000, 1.000] | 1.000 | 1.000 | 3000 | 1.00 | 3417 |" in text
+    png = results_dir / "Hopper-v4-all.png"  # every tag; Hopper-v4.png holds today's defaults, of which there are none
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 5000
-    content = readme.read_text()
-    assert "old" not in content and "| gail | 3 |" in content and content.endswith("after\n")
+    assert not (results_dir / "Hopper-v4.png").exists()
+    content = readme.read_text()  # tags `gail` and `rile` are no defaults: the README names none, docs/results.md both
+    assert "old" not in content and "| gail | 3 |" not in content and content.endswith("after\n")
+    assert "No results with today's defaults yet." in content and "[docs/results.md](docs/results.md)" in content
+    assert "| gail | 3 |" in (tmp_path / "docs" / "results.md").read_text()
     assert (results_dir / "REPORT.md").read_text() == text
+
+
+def test_the_readme_shows_todays_defaults_by_name_and_docs_every_tag(results_dir, tmp_path):
+    """The README's section holds the tags DEFAULT_ROWS lists, under readable names, grouped by script, with the line
+    on which seeds chose the defaults; docs/results.md holds every tag, the defaults marked; links resolve."""
+    hopper = results_dir / "Hopper-v4"
+    for algo, seed, final in [("rile-paperD", 1, 3000.0), ("rile-paperD", 2, 3200.0), ("gail-paperD-autotune", 1, 2800.0),
+                              ("rile-paperD-control", 1, 1600.0), ("rile-excess-release", 1, 1000.0), ("bco", 1, 2400.0)]:
+        (hopper / f"{algo}__{seed}.json").write_text(json.dumps(fake_result(algo, seed, [0.0, final], 3200.0)))
+    (results_dir / "Walker2d-v4").mkdir()  # an env with no run of today's defaults gets no README table
+    (results_dir / "Walker2d-v4" / "gail-pooled__1.json").write_text(
+        json.dumps(fake_result("gail-pooled", 1, [0.0, 900.0], 4000.0, env_id="Walker2d-v4")))
+    readme = tmp_path / "README.md"
+    readme.write_text(f"# x\n\n{sweep.README_START}\n{sweep.README_END}\n")
+    sweep.report(str(results_dir), readme=str(readme))
+    section = readme.read_text().split(sweep.README_START)[1]
+    rows = [line.split(" | ")[0][2:] for line in section.splitlines() if line.startswith("| ") and "---" not in line]
+    assert rows == ["algorithm", "rile.py defaults", "rile.py control: r_S = v(D), no trainer", "gail.py defaults",
+                    "bco.py defaults"]  # by script as DEFAULT_ROWS lists them, not by tag
+    assert "| rile.py defaults | 2 | 3100.0 ± 100.0 | 0.969 ± 0.031 |" in section
+    for tag in ("paperD", "excess-release", "| gail |", "| rile |", "Walker2d-v4", "gail-pooled"):
+        assert tag not in section, tag
+    assert sweep.SELECTION_NOTE in section and "seeds 3 and 4 were not" in section
+    assert "[Hopper-v4.png](results/Hopper-v4.png)" in section and (tmp_path / "results/Hopper-v4.png").exists()
+
+    docs = (tmp_path / "docs" / "results.md").read_text()
+    for row in ("| rile-paperD (rile.py defaults) | 2 |", "| rile-paperD-control (rile.py control: r_S = v(D), no "
+                "trainer) | 1 |", "| gail-paperD-autotune (gail.py defaults) | 1 |", "| rile-excess-release | 1 |",
+                "| gail | 3 |", "| rile | 1 |", "| gail-pooled | 1 |"):
+        assert row in docs, row
+    for page, target in [(readme, t) for t in re.findall(r"\]\(([^)]+)\)", section)] + [
+            (tmp_path / "docs" / "results.md", t) for t in re.findall(r"\]\(([^)]+)\)", docs) if t != "history.md"]:
+        assert (page.parent / target).exists(), (page.name, target)
 
 
 def test_last_quarter_averages_the_evaluations_after_three_quarters_of_the_steps(results_dir):
     """A run that swings: 8 evaluations at 1k..8k, the last quarter is 7k and 8k (6k is exactly 3/4, left out)."""
     for seed, curve in ((1, [0, 0, 0, 0, 0, 4000, 1000, 3000]), (2, [0, 0, 0, 0, 0, 0, 3000, 4000])):
         (results_dir / "Hopper-v4" / f"swing__{seed}.json").write_text(json.dumps(fake_result("swing", seed, curve, 4000.0)))
-    # seed 1: (0.25 + 0.75) / 2 = 0.5; seed 2: (0.75 + 1) / 2 = 0.875; over seeds 0.6875 +- 0.1875, printed 0.187
-    assert "| swing | 2 | 3500.0 ± 500.0 | 0.875 ± 0.125 | 0.875 [0.750, 1.000] | 0.688 ± 0.187 | 8000 |" in (
+    # seed 1: (0.25 + 0.75) / 2 = 0.5; seed 2: (0.75 + 1) / 2 = 0.875; over seeds 0.6875 +- 0.1875, printed 0.187;
+    # the worst of those four evaluations: 0.25
+    assert "| swing | 2 | 3500.0 ± 500.0 | 0.875 ± 0.125 | 0.875 [0.750, 1.000] | 0.688 ± 0.187 | 0.250 | 8000 |" in (
         sweep.report(str(results_dir), readme=None))
     r = fake_result("raw", 1, [5.0, 7.0, 9.0, 11.0, 13.0])  # no expert return: returns, not normalized
     assert sweep.last_quarter(r, normalize=False) == 12.0  # 4k and 5k, after 3.75k: (11 + 13) / 2
+    assert sweep.last_quarter(r, normalize=False, worst=True) == 11.0  # the lower of the two
 
 
 def test_normalized_score_is_zero_for_random_and_one_for_the_expert():
