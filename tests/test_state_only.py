@@ -2,6 +2,7 @@
 discriminator on (s, s') and its trainer's observation in both choices, end to end."""
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -111,6 +112,17 @@ def test_discriminator_and_trainer_inputs_from_states_only(monkeypatch, trainer_
         assert (next_obs_t[:, OBS:].abs() <= 1).all()
     d = disc.prob(torch.cat([batch.obs, batch.next_obs], -1))  # r_T from D(s, s') in both choices
     assert torch.allclose(r_t, torch.exp(-((2 * d - 1) - a_t.squeeze(-1)).abs()))
+
+
+def test_the_control_from_states_only_rewards_the_student_with_v_of_d_on_its_transitions(monkeypatch):
+    """--student-reward discriminator --state-only: r_S = 2 D(s, s') - 1 on the student's batch, no trainer."""
+    args, student, _, disc, rb, expert, state = state_only_learners("state-action")
+    args = replace(args, student_reward="discriminator", termination_remedy="none")
+    seen = []
+    monkeypatch.setattr(student, "update", lambda obs, actions, next_obs, rewards, terminations, prefix: seen.append(
+        (rewards, 2 * disc.prob(torch.cat([obs, next_obs], -1)) - 1)) or {})
+    rile.rile_update(student, None, disc, rb, expert, args, state, 1)
+    assert torch.allclose(*seen[0]) and state["trainer_updates"] == 0
 
 
 # ---------------------------------------------------------------- end to end
