@@ -478,11 +478,12 @@ class Run:
 
     def end_step(self, step: int, act) -> None:
         """After env step `step` (counted from 1): an evaluation every --eval-freq steps, a checkpoint when due."""
-        self.sps = (step - self.tick[0]) / (time.perf_counter() - self.tick[1])  # since the last evaluation
         if step % self.args.eval_freq == 0 or step == self.args.total_timesteps:
+            self.sps = (step - self.tick[0]) / (time.perf_counter() - self.tick[1])  # since the last evaluation
             self.evaluate(step, act)
             self.tick = (step, time.perf_counter())
         elif self.tty and time.perf_counter() - self.shown > 10:
+            self.sps = (step - self.tick[0]) / (time.perf_counter() - self.tick[1])
             self.show(step)
         self.checkpoints.end_step(step)
 
