@@ -67,6 +67,8 @@ DEFAULT_NAMES = {(os.path.splitext(script)[0] + (f"-{tag}" if tag else "")): nam
 SCRIPT_ORDER = list(dict.fromkeys(script for script, _ in DEFAULT_ROWS))  # README rows: by script, then as listed
 # The line under every README table: which seeds chose the defaults, so that a reader can tell tuned from held-out.
 SELECTION_NOTE = "Seeds 1 and 2 of rile.py and gail.py were used to choose the defaults; seeds 3 and 4 were not."
+# The line on what RILe's trainer adds: rile.py's defaults minus the control that rewards the student with v(D).
+TRAINER_GAP = ("rile-paperD", "rile-paperD-control")
 ENV_NOTES = {  # a line under an env's README table, where its runs differ from the others' protocol
     "Pendulum-v1": "Pendulum-v1 checks the defaults on a task without terminations, actions in [-2, 2]: 10 "
                    "demonstrations of this project's SAC expert, 15k env steps, learning from step 2,000 (iqlearn.py's "
@@ -255,6 +257,15 @@ def bootstrap_ci(values, stat=iqm, num_samples: int = 2000, confidence: float = 
     return float(np.quantile(stats, (1 - confidence) / 2)), float(np.quantile(stats, (1 + confidence) / 2))
 
 
+def difference_ci(a, b, num_samples: int = 2000, confidence: float = 0.95, seed: int = 0) -> tuple:
+    """Percentile bootstrap of mean(a) - mean(b), each group's seeds resampled on their own (fixed RNG seed)."""
+    a, b = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
+    rng = np.random.default_rng(seed)
+    diffs = [a[rng.integers(0, len(a), len(a))].mean() - b[rng.integers(0, len(b), len(b))].mean()
+             for _ in range(num_samples)]
+    return float(np.quantile(diffs, (1 - confidence) / 2)), float(np.quantile(diffs, (1 + confidence) / 2))
+
+
 REQUIRED = ("algo", "env_id", "seed", "evals", "final_return", "expert_return", "wall_time_s", "config")
 
 
@@ -436,6 +447,24 @@ COLUMNS = ("Final return: the last deterministic evaluation of each seed, mean Â
            "MuJoCo table (v2 envs, its own training length).\n")
 
 
+def trainer_gap(rows: dict) -> str:
+    """The line on what RILe's trainer adds where a table holds rile.py's defaults and the control: the difference of
+    their last-quarter means (normalized), with a bootstrap interval, and of their finals."""
+    if not all(algo in rows for algo in TRAINER_GAP):
+        return ""
+    rile, control = rows[TRAINER_GAP[0]], rows[TRAINER_GAP[1]]
+    if any(normalized_score(r["final_return"], random_return_of(r), r.get("expert_return")) is None
+           for r in rile + control):
+        return ""
+    quarter = [[last_quarter(r, normalize=True) for r in runs] for runs in (rile, control)]
+    final = [[normalized_score(r["final_return"], random_return_of(r), r["expert_return"]) for r in runs]
+             for runs in (rile, control)]
+    lo, hi = difference_ci(*quarter)
+    return (f"What the trainer adds, rile.py defaults minus the control ({len(rile)} and {len(control)} seeds): "
+            f"last quarter {np.mean(quarter[0]) - np.mean(quarter[1]):+.3f} (95% bootstrap interval [{lo:+.3f}, "
+            f"{hi:+.3f}]), final {np.mean(final[0]) - np.mean(final[1]):+.3f}, normalized.")
+
+
 def all_tags_text(grouped: dict, bad: list, results_dir: str, page_dir: str) -> str:
     """Every tag of every env, today's defaults named as well; image links relative to page_dir."""
     parts = []
@@ -461,8 +490,8 @@ def defaults_text(grouped: dict, results_dir: str, page_dir: str) -> str:
         names = {algo: default_name(algo) for algo in rows}
         png = os.path.relpath(os.path.join(results_dir, f"{env_id}.png"), page_dir)
         note = version_note(rows, names)
-        lines = [ENV_NOTES.get(env_id, ""), SELECTION_NOTE, f"Learning curves: [{env_id}.png]({png}).",
-                 f"{note}." if note else ""]
+        lines = [ENV_NOTES.get(env_id, ""), trainer_gap(rows), SELECTION_NOTE,
+                 f"Learning curves: [{env_id}.png]({png}).", f"{note}." if note else ""]
         parts.append(f"### {env_id}\n\n{env_table(env_id, rows, names)}\n\n" + "".join(f"{x}\n" for x in lines if x))
     return (("\n".join(parts) or "No results with today's defaults yet.\n") + "\n" + COLUMNS
             + f"\nEvery other configuration that was run, and these under their tags: [{DOCS_PAGE}]({DOCS_PAGE}).\n")

@@ -45,6 +45,14 @@ def test_bootstrap_interval():
     assert min(x) <= lo and hi <= max(x)
 
 
+def test_difference_interval():
+    """mean(a) - mean(b), each group resampled on its own: a = [0, 1] resamples to means 0, 0.5, 1 (p 1/4, 1/2, 1/4),
+    b = [0] stays 0, so the 95% interval runs from 0 to 1 and the point estimate 0.5 lies inside."""
+    assert sweep.difference_ci([0.0, 1.0], [0.0]) == (0.0, 1.0)
+    assert sweep.difference_ci([2.0, 2.0], [0.5, 0.5, 0.5]) == (1.5, 1.5)
+    assert sweep.difference_ci([0.3, 0.9, 0.4], [0.1, 0.2]) == sweep.difference_ci([0.3, 0.9, 0.4], [0.1, 0.2])
+
+
 # ---------------------------------------------------------------- report
 
 
@@ -93,6 +101,9 @@ def test_the_readme_shows_todays_defaults_by_name_and_docs_every_tag(results_dir
     for algo, seed, final in [("rile-paperD", 1, 3000.0), ("rile-paperD", 2, 3200.0), ("gail-paperD-autotune", 1, 2800.0),
                               ("rile-paperD-control", 1, 1600.0), ("rile-excess-release", 1, 1000.0), ("bco", 1, 2400.0)]:
         (hopper / f"{algo}__{seed}.json").write_text(json.dumps(fake_result(algo, seed, [0.0, final], 3200.0)))
+    (results_dir / "HalfCheetah-v4").mkdir()  # rile.py's defaults without the control
+    (results_dir / "HalfCheetah-v4" / "rile-paperD__1.json").write_text(
+        json.dumps(fake_result("rile-paperD", 1, [0.0, 900.0], 4000.0, env_id="HalfCheetah-v4")))
     (results_dir / "Walker2d-v4").mkdir()  # an env with no run of today's defaults gets no README table
     (results_dir / "Walker2d-v4" / "gail-pooled__1.json").write_text(
         json.dumps(fake_result("gail-pooled", 1, [0.0, 900.0], 4000.0, env_id="Walker2d-v4")))
@@ -100,13 +111,19 @@ def test_the_readme_shows_todays_defaults_by_name_and_docs_every_tag(results_dir
     readme.write_text(f"# x\n\n{sweep.README_START}\n{sweep.README_END}\n")
     sweep.report(str(results_dir), readme=str(readme))
     section = readme.read_text().split(sweep.README_START)[1]
-    rows = [line.split(" | ")[0][2:] for line in section.splitlines() if line.startswith("| ") and "---" not in line]
+    hopper = section.split("### Hopper-v4")[1].split("###")[0]
+    rows = [line.split(" | ")[0][2:] for line in hopper.splitlines() if line.startswith("| ") and "---" not in line]
     assert rows == ["algorithm", "rile.py defaults", "rile.py control: r_S = v(D), no trainer", "gail.py defaults",
                     "bco.py defaults"]  # by script as DEFAULT_ROWS lists them, not by tag
     assert "| rile.py defaults | 2 | 3100.0 ± 100.0 | 0.969 ± 0.031 |" in section
     for tag in ("paperD", "excess-release", "| gail |", "| rile |", "Walker2d-v4", "gail-pooled"):
         assert tag not in section, tag
     assert sweep.SELECTION_NOTE in section and "seeds 3 and 4 were not" in section
+    # what the trainer adds: rile.py normalized 0.9375 and 1 (its last quarter: the final evaluation alone), the
+    # control 0.5; the difference 0.46875, its interval from rile.py's resampled means 0.9375, 0.96875, 1 less 0.5
+    assert ("What the trainer adds, rile.py defaults minus the control (2 and 1 seeds): last quarter +0.469 (95% "
+            "bootstrap interval [+0.438, +0.500]), final +0.469, normalized.") in section
+    assert section.count("What the trainer adds") == 1 and "What the trainer adds" in hopper  # none without a control
     assert "[Hopper-v4.png](results/Hopper-v4.png)" in section and (tmp_path / "results/Hopper-v4.png").exists()
 
     docs = (tmp_path / "docs" / "results.md").read_text()
