@@ -452,15 +452,14 @@ def trainer_gap(rows: dict) -> str:
     their last-quarter means (normalized), with a bootstrap interval, and of their finals."""
     if not all(algo in rows for algo in TRAINER_GAP):
         return ""
-    rile, control = rows[TRAINER_GAP[0]], rows[TRAINER_GAP[1]]
-    if any(normalized_score(r["final_return"], random_return_of(r), r.get("expert_return")) is None
-           for r in rile + control):
+    runs = [rows[algo] for algo in TRAINER_GAP]
+    final = [[normalized_score(r["final_return"], random_return_of(r), r.get("expert_return")) for r in g]
+             for g in runs]
+    if None in final[0] + final[1]:
         return ""
-    quarter = [[last_quarter(r, normalize=True) for r in runs] for runs in (rile, control)]
-    final = [[normalized_score(r["final_return"], random_return_of(r), r["expert_return"]) for r in runs]
-             for runs in (rile, control)]
+    quarter = [[last_quarter(r, normalize=True) for r in g] for g in runs]
     lo, hi = difference_ci(*quarter)
-    return (f"What the trainer adds, rile.py defaults minus the control ({len(rile)} and {len(control)} seeds): "
+    return (f"What the trainer adds, rile.py defaults minus the control ({len(runs[0])} and {len(runs[1])} seeds): "
             f"last quarter {np.mean(quarter[0]) - np.mean(quarter[1]):+.3f} (95% bootstrap interval [{lo:+.3f}, "
             f"{hi:+.3f}]), final {np.mean(final[0]) - np.mean(final[1]):+.3f}, normalized.")
 
