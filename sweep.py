@@ -65,8 +65,10 @@ DEFAULT_ROWS = {
 DEFAULT_NAMES = {(os.path.splitext(script)[0] + (f"-{tag}" if tag else "")): name
                  for (script, tag), name in DEFAULT_ROWS.items()}  # results-file algo -> row name
 SCRIPT_ORDER = list(dict.fromkeys(script for script, _ in DEFAULT_ROWS))  # README rows: by script, then as listed
-# The line under every README table: which seeds chose the defaults, so that a reader can tell tuned from held-out.
+# The line under the README tables that hold rile.py's or gail.py's 200k runs (SELECTED): which seeds chose their
+# defaults, so that a reader can tell tuned from held-out.
 SELECTION_NOTE = "Seeds 1 and 2 of rile.py and gail.py were used to choose the defaults; seeds 3 and 4 were not."
+SELECTED = ("rile-paperD", "gail-paperD-autotune")
 # The line on what RILe's trainer adds: rile.py's defaults minus the control that rewards the student with v(D).
 TRAINER_GAP = ("rile-paperD", "rile-paperD-control")
 ENV_NOTES = {  # a line under an env's README table, where its runs differ from the others' protocol
@@ -489,7 +491,8 @@ def defaults_text(grouped: dict, results_dir: str, page_dir: str) -> str:
         names = {algo: default_name(algo) for algo in rows}
         png = os.path.relpath(os.path.join(results_dir, f"{env_id}.png"), page_dir)
         note = version_note(rows, names)
-        lines = [ENV_NOTES.get(env_id, ""), trainer_gap(rows), SELECTION_NOTE,
+        lines = [ENV_NOTES.get(env_id, ""), trainer_gap(rows),
+                 SELECTION_NOTE if any(algo in rows for algo in SELECTED) else "",
                  f"Learning curves: [{env_id}.png]({png}).", f"{note}." if note else ""]
         parts.append(f"### {env_id}\n\n{env_table(env_id, rows, names)}\n\n" + "".join(f"{x}\n" for x in lines if x))
     return (("\n".join(parts) or "No results with today's defaults yet.\n") + "\n" + COLUMNS

@@ -104,6 +104,9 @@ def test_the_readme_shows_todays_defaults_by_name_and_docs_every_tag(results_dir
     (results_dir / "HalfCheetah-v4").mkdir()  # rile.py's defaults without the control
     (results_dir / "HalfCheetah-v4" / "rile-paperD__1.json").write_text(
         json.dumps(fake_result("rile-paperD", 1, [0.0, 900.0], 4000.0, env_id="HalfCheetah-v4")))
+    (results_dir / "Pendulum-v1").mkdir()  # a table without rile.py's or gail.py's tuned runs: no selection note
+    (results_dir / "Pendulum-v1" / "bc-10demos__1.json").write_text(
+        json.dumps(fake_result("bc-10demos", 1, [0.0, -200.0], -150.0, env_id="Pendulum-v1")))
     (results_dir / "Walker2d-v4").mkdir()  # an env with no run of today's defaults gets no README table
     (results_dir / "Walker2d-v4" / "gail-pooled__1.json").write_text(
         json.dumps(fake_result("gail-pooled", 1, [0.0, 900.0], 4000.0, env_id="Walker2d-v4")))
@@ -119,6 +122,8 @@ def test_the_readme_shows_todays_defaults_by_name_and_docs_every_tag(results_dir
     for tag in ("paperD", "excess-release", "| gail |", "| rile |", "Walker2d-v4", "gail-pooled"):
         assert tag not in section, tag
     assert sweep.SELECTION_NOTE in section and "seeds 3 and 4 were not" in section
+    pendulum = section.split("### Pendulum-v1")[1].split("###")[0]
+    assert "bc.py defaults with 10 demonstrations" in pendulum and sweep.SELECTION_NOTE not in pendulum
     # what the trainer adds: rile.py normalized 0.9375 and 1 (its last quarter: the final evaluation alone), the
     # control 0.5; the difference 0.46875, its interval from rile.py's resampled means 0.9375, 0.96875, 1 less 0.5
     assert ("What the trainer adds, rile.py defaults minus the control (2 and 1 seeds): last quarter +0.469 (95% "
