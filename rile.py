@@ -36,7 +36,8 @@ Implementation choices and deviations (the measurements behind each: docs/rile.m
    policy, a_T = v(D), is the same at any discount; the discount sets how far its critic bootstraps. Kept: at the
    paper's 0.99 its critic's error grew and Walker2d-v4 did worse than both default seeds.
 12. The control (`--student-reward discriminator`, not in the paper): r_S = v(D) of the current D on every batch, no
-   trainer, all else as the defaults; what rile.py's results owe to the trainer is the gap between the two.
+   trainer, all else as the defaults. rile.py minus the control, 200k, 4 seeds, last quarter (normalized): Hopper-v4
+   -0.019, HalfCheetah-v4 -0.015, Walker2d-v4 +0.008, every 95% interval across 0: no gain from the trainer shown.
 
 Logged: charts/*, eval/{return,normalized_return}, losses/{student,trainer}_*, losses/disc_*, disc/*_prob, reward/*,
 trainer/{frozen,critic_loss_ema}; every --dynamics-freq steps the reward measures (r_S and D on demonstrations and
