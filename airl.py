@@ -24,12 +24,15 @@ Implementation choices and deviations
    living g, so falling never pays; `learned` (DAC's) where the demonstrations themselves end in terminations.
 8. The logit is f + b - log pi with a free level b (`--disc-level-lr`, 1e-2; 0 removes it), so that g and h need
    not saturate to reach the level log pi sets; f and g never include b, softplus (D's own -log(1 - D)) does.
+9. `--expert-action-noise`, `--expert-state-noise`: Gaussian noise on the demonstrations (rile.py's noise robustness),
+   drawn once per run from --seed, actions clipped to the box (`--no-expert-noise-clip`: not).
 
 Logged metrics: charts/{episodic_return,episodic_length,SPS}, eval/{return,normalized_return}, losses/{qf_loss,
 qf_values,qf_target_var,actor_loss,alpha_loss,alpha,entropy,disc_loss,disc_gp}, disc/{expert,policy}_prob, disc/level,
 reward/learned_{mean,std}, dynamics/* (rile.py's reward measures, every --dynamics-freq). Details: docs/baselines.md
 """
 
+import glob
 import json
 import os
 import platform
@@ -41,7 +44,7 @@ import sys
 import time
 from dataclasses import asdict, dataclass, fields, replace
 from importlib import metadata
-from typing import Literal, NamedTuple, Optional
+from typing import Annotated, Literal, NamedTuple, Optional
 
 import gymnasium as gym
 import numpy as np
@@ -53,6 +56,10 @@ import tyro
 
 @dataclass
 class Args:
+    """AIRL on SAC: a discriminator built from a reward g(s, a) and a shaping potential h(s) tells the expert's
+    transitions from the agent's, and a SAC agent learns from the reward it gives. Start it
+    with `python airl.py --env-id Hopper-v4 --total-timesteps 200000`. "The paper" below is AIRL's,
+    arXiv 1710.11248; "the RILe paper's" values are the AIRL setting of arXiv 2406.08472."""
     exp_name: str = "airl"
     """the name of this experiment"""
     seed: int = 1
@@ -71,11 +78,11 @@ class Args:
     """record a video of one deterministic episode at the end (needs `pip install moviepy`)"""
     save_model: bool = True
     """save the actor (actor.pt) and the learned reward (reward.pt) in the run directory"""
-    run_name: Optional[str] = None
-    """run directory under runs/ (default: {env_id}__{exp_name}__{seed}__{unix_time})"""
+    run_name: Annotated[Optional[str], tyro.conf.arg(
+        help_behavior_hint="(default: {env_id}__{exp_name}__{seed}__{unix_time})")] = None
+    """the run directory under runs/"""
     resume: Optional[str] = None
-    """continue the run saved in this run directory (or checkpoint file); its config is reused,
-    except total_timesteps, cuda and threads when given on the command line"""
+    """continue this run (directory or checkpoint) on its config; --total-timesteps, --cuda, --threads may change"""
     checkpoint_freq: int = 50_000
     """write a resumable checkpoint every this many env steps (and on Ctrl-C / SIGTERM); 0 disables"""
     threads: int = 2
@@ -87,36 +94,33 @@ class Args:
     total_timesteps: int = 1_000_000
     """total env steps of training"""
     buffer_size: int = 1_000_000
-    """the replay buffer size"""
+    """the replay buffer size (the RILe paper's)"""
     gamma: float = 0.99
-    """the discount factor"""
+    """the discount factor (the RILe paper's)"""
     tau: float = 0.01
-    """the target smoothing coefficient (0.01: the paper's GAIL setting)"""
+    """the target smoothing coefficient (the RILe paper's)"""
     batch_size: int = 256
-    """the batch size of a SAC update"""
+    """the batch size of a SAC update (the RILe paper's)"""
     learning_starts: int = 5_000
     """env steps of uniform random actions before any update"""
     policy_lr: float = 3e-4
-    """the learning rate of the actor"""
+    """the learning rate of the actor (the RILe paper's)"""
     q_lr: float = 3e-4
-    """the learning rate of the critics"""
+    """the learning rate of the critics (the RILe paper's)"""
     alpha: float = 0.2
-    """the entropy temperature"""
+    """the entropy temperature (the RILe paper's)"""
     autotune: bool = False
-    """tune the temperature towards -|A| (the paper fixes it at 0.2)"""
+    """tune the temperature towards an entropy of -|A|; off, a fixed --alpha (the RILe paper's)"""
     hidden_dim: int = 256
-    """width of the actor's and critics' two hidden layers"""
+    """width of the actor's and critics' two hidden layers (the RILe paper's)"""
     reward: Literal["softplus", "f", "g"] = "softplus"
-    """the SAC reward: softplus = -log(1 - D) (GAIL's non-negative reward on AIRL's D, logit f + b - log pi),
-    f = g(s, a) + gamma h(s') - h(s) (the paper's, signed: use --termination-remedy absorbing), or g alone"""
+    """the SAC reward: softplus, -log(1 - D) >= 0; f, g(s, a) + gamma h(s') - h(s) (the paper's); or g alone"""
     state_only: bool = False
     """g depends on the state only (the paper's variant for transfer)"""
     termination_remedy: Literal["none", "absorbing"] = "none"
-    """none: a termination ends bootstrapping (softplus >= 0 then pays to survive, a signed f or g can pay the agent
-    to fall); absorbing: DAC's absorbing states for agent and expert data"""
+    """none: terminations end bootstrapping (softplus then pays to survive, f or g may pay to fall); absorbing: DAC's"""
     absorbing_anchor: Literal["min", "learned"] = "min"
-    """with absorbing states: min (h(s_abs) = 0 and the reward at s_abs is the batch's lowest living g,
-    so falling never pays) or learned (the discriminator's own f at s_abs, DAC's treatment)"""
+    """absorbing states: min, h(s_abs) = 0 and r there the batch's lowest living g; learned, D's f there (DAC's)"""
     eval_freq: int = 10_000
     """evaluate the deterministic policy every this many env steps"""
     eval_episodes: int = 10
@@ -124,32 +128,33 @@ class Args:
 
     # Discriminator arguments
     disc_hidden_dim: int = 64
-    """width of the two hidden layers of g and of h"""
+    """width of the two hidden layers of g and of h (the RILe paper's)"""
     disc_lr: float = 3e-5
-    """the discriminator's learning rate"""
+    """the discriminator's learning rate (the RILe paper's)"""
     disc_batch_size: int = 32
-    """expert pairs and agent pairs per discriminator update (each)"""
+    """expert pairs and agent pairs per discriminator update, each (the RILe paper's)"""
     disc_buffer_size: int = 16_384
-    """the discriminator learns from this many most recent agent transitions"""
+    """the discriminator learns from this many most recent agent transitions (the RILe paper's)"""
     disc_gp: float = 1.0
-    """weight of the one-centred gradient penalty"""
+    """weight of the one-centred gradient penalty (the RILe paper's)"""
     disc_level_lr: float = 1e-2
     """learning rate of the logit's free level b (logit f + b - log pi; never paid to SAC); 0: no b"""
     disc_policy_mix: float = 1.0
-    """log pi in the logit is that of (1 - mix) pi + mix Uniform(action box): 1, a constant (D does not see the
-    policy); 0, the paper's D with the policy's own log pi; in between, bounded below by log(mix / box volume)"""
+    """log pi in D's logit: that of (1 - mix) pi + mix Uniform(box); 1, D does not see pi; 0, pi's own (the paper's)"""
 
     # Imitation arguments
-    expert_path: Optional[str] = None
-    """demonstrations (default: experts/<env_id>.npz)"""
+    expert_path: Annotated[Optional[str], tyro.conf.arg(help_behavior_hint="(default: experts/<env-id>.npz)")] = None
+    """the demonstrations file"""
     num_expert_trajs: int = 25
-    """use the first this many demonstration episodes"""
+    """use the first this many demonstration episodes (the RILe paper's)"""
     expert_action_noise: float = 0.0
-    """std of Gaussian noise added to the expert's actions (noise-robustness experiment)"""
+    """std of Gaussian noise on the demonstrations' actions, drawn once per run from --seed, clipped to the box"""
+    expert_noise_clip: bool = True
+    """clip the noisy demonstration actions to the action box (--no-expert-noise-clip: leave them outside it)"""
     expert_state_noise: float = 0.0
-    """std of Gaussian noise added to the expert's states (noise-robustness experiment)"""
+    """std of Gaussian noise on the demonstrations' states and next states, drawn once per run from --seed"""
     dynamics_freq: int = 10_000
-    """measure the learned reward every this many steps (r_S, D, RFDC, FS-RFDC, CPR; header); 0 disables"""
+    """measure the learned reward (r_S, D, RFDC, FS-RFDC, CPR) into results.json every this many steps; 0 disables"""
 
 
 # ALGO LOGIC: AIRL's discriminator f(s, a, s') = g(s, a) + gamma h(s') - h(s), then AIRL's update
@@ -584,11 +589,11 @@ def load_demonstrations(path: str, env: gym.Env, num_trajs: Optional[int] = None
     With `state_only` the actions are dropped (a file without them loads). Each problem is one SystemExit line."""
     env_id, obs_dim, act_dim = env.spec.id, env.observation_space.shape[0], env.action_space.shape[0]
 
-    def fail(problem: str, fix: str = f"record them with `python expert.py --env-id {env_id}`"):
+    def fail(problem: str, fix: str = f"record them with `python expert.py --env-id {env_id}` (hours on a CPU)"):
         raise SystemExit(f"error: demonstrations '{path}' {problem}; {fix}")
 
     if not os.path.isfile(path):
-        fail("are missing", f"record them with `python expert.py --env-id {env_id}` or pass --expert-path")
+        fail(f"do not exist (experts/ has {sorted(n[:-4] for n in glob.glob('*.npz', root_dir='experts'))})")
     try:
         with np.load(path, allow_pickle=False) as f:
             data = {k: f[k] for k in f.files}
@@ -677,8 +682,8 @@ class Run:
     """The run's directory (config.json, TensorBoard, results.json with `extra`), evaluations, its `Checkpoints`."""
 
     def __init__(self, args, checkpoint: Optional[dict], stateful: dict, demos: Optional[dict], device,
-                 checkpoint_freq: int = 0):
-        self.args, self.extra, self.evals, self.start_step, self.sps = args, {}, [], 0, 0.0
+                 checkpoint_freq: int = 0, learning_starts: int = 0):
+        self.args, self.extra, self.evals, self.start_step, self.sps = args, {}, [], 0, None
         returns = demos["episode_returns"] if demos else np.array([np.nan])  # the normalized score's 1 (random's: 0)
         self.expert_return = float(returns.mean()) if np.isfinite(returns.mean()) else None
         self.random_return = demos["metadata"]["random_return"] if demos else None
@@ -690,7 +695,7 @@ class Run:
         self.writer, self.machine = tensorboard(args, self.name, self.dir), machine(device)
         self.start_time = time.time()  # time.time() - start_time: the run's wall time (a resumed run's included)
         self.checkpoints = Checkpoints(self, stateful, checkpoint_freq, checkpoint, device)
-        self.tick, self.shown, self.tty = (self.start_step, time.perf_counter()), 0.0, sys.stdout.isatty()
+        self.shown, self.tty, self.marks, self.learning_starts = 0.0, sys.stdout.isatty(), [], learning_starts
         expert = f"{len(returns)} demonstration episodes, return {returns.mean():.1f} | " if demos else ""
         print(f"{'resumed ' * bool(checkpoint)}{self.dir} at step {self.start_step} of {args.total_timesteps} | "
               f"{args.env_id} | {expert}{device}, threads {torch.get_num_threads()}", flush=True)
@@ -702,13 +707,13 @@ class Run:
 
     def end_step(self, step: int, act) -> None:
         """After env step `step` (counted from 1): an evaluation every --eval-freq steps, a checkpoint when due."""
-        if step % self.args.eval_freq == 0 or step == self.args.total_timesteps:
-            self.sps = (step - self.tick[0]) / (time.perf_counter() - self.tick[1])  # since the last evaluation
-            self.evaluate(step, act)
-            self.tick = (step, time.perf_counter())
-        elif self.tty and time.perf_counter() - self.shown > 10:
-            self.sps = (step - self.tick[0]) / (time.perf_counter() - self.tick[1])
-            self.show(step)
+        now, evaluation = time.perf_counter(), step % self.args.eval_freq == 0 or step == self.args.total_timesteps
+        if step > self.learning_starts and (not self.marks or now - self.marks[-1][1] >= 10):
+            self.marks = self.marks[-60:] + [(step, now)]  # every 10 s of learning: SPS over this process's last 10 min
+        if evaluation or (self.tty and now - self.shown > 10):  # on a terminal, progress every 10 s
+            first_step, first = self.marks[0] if self.marks else (step, now)
+            self.sps = (step - first_step) / (now - first) if now - first >= 60 else None  # None: not measured yet
+            self.evaluate(step, act) if evaluation else self.show(step)
         self.checkpoints.end_step(step)
 
     def evaluate(self, step: int, act) -> None:
@@ -722,10 +727,10 @@ class Run:
         self.show(step)
 
     def show(self, step: int) -> None:
-        """One line: steps, SPS, minutes so far and left, the latest evaluation (on a terminal, rewritten in place)."""
+        """One line: steps, minutes so far, SPS and minutes left, the latest evaluation (on a terminal, in place)."""
         total, last = self.args.total_timesteps, self.evals[-1] if self.evals else None
-        line = (f"step {step}/{total} | {self.sps:.0f} SPS | {(time.time() - self.start_time) / 60:.0f} min, "
-                f"{(total - step) / max(self.sps, 1e-6) / 60:.0f} min left")
+        rate = f"{self.sps:.0f} SPS, {(total - step) / self.sps / 60:.0f} min left" if self.sps else "SPS: measuring"
+        line = f"step {step}/{total} | {(time.time() - self.start_time) / 60:.0f} min | {rate}"
         if last:
             score = f" = {last['normalized']:.2f} normalized" if last["normalized"] is not None else ""
             line += f" | eval at {last['step']}: return {last['mean']:.1f} +- {last['std']:.1f}{score}"
@@ -811,8 +816,7 @@ def tensorboard(args, name: str, run_dir: str):
                    config=vars(args), name=name, id=name, resume="allow", save_code=True)
     from torch.utils.tensorboard import SummaryWriter
     writer = SummaryWriter(run_dir)
-    table = "\n".join(f"|{k}|{v}|" for k, v in asdict(args).items())
-    writer.add_text("hyperparameters", "|param|value|\n|-|-|\n" + table)
+    writer.add_text("hyperparameters", "|param|value|\n|-|-|" + "".join(f"\n|{k}|{v}|" for k, v in vars(args).items()))
     return writer
 
 
@@ -865,7 +869,8 @@ if __name__ == "__main__":
     obs_dim, act_dim = env.observation_space.shape[0], env.action_space.shape[0]
     low, high = env.action_space.low, env.action_space.high
     demos = load_demonstrations(args.expert_path or f"experts/{args.env_id}.npz", env, args.num_expert_trajs)
-    expert = expert_tensors(demos, args.seed, device, args.expert_state_noise, args.expert_action_noise, low, high)
+    clip = (low, high) if args.expert_noise_clip else (-np.inf, np.inf)  # where noisy expert actions may lie
+    expert = expert_tensors(demos, args.seed, device, args.expert_state_noise, args.expert_action_noise, *clip)
     absorbing = args.termination_remedy == "absorbing"
     if absorbing:
         expert = absorbing_expert(expert)
@@ -882,7 +887,8 @@ if __name__ == "__main__":
     measures = {"interval": None, "demos": None, "history": []}  # reward_measures' memory
     stateful = {"agent": agent, "disc": disc, "disc_optimizer": disc.optimizer, "replay_buffer": rb,
                 "measures": measures}
-    run = Run(args, checkpoint, stateful, demos, device, checkpoint_freq=args.checkpoint_freq)
+    run = Run(args, checkpoint, stateful, demos, device, checkpoint_freq=args.checkpoint_freq,
+              learning_starts=args.learning_starts)
     run.extra = {"reward_measures": measures["history"]}
     anchor = absorbing and args.absorbing_anchor == "min"
     as_x = lambda data: tuple(data[k] for k in ("obs", "actions", "next_obs", "terminations"))  # what f and D read

@@ -25,6 +25,7 @@ Logged metrics: losses/{train,holdout,holdout_mse}, eval/{return,normalized_retu
 second). Details: docs/baselines.md
 """
 
+import glob
 import json
 import os
 import platform
@@ -36,7 +37,7 @@ import sys
 import time
 from dataclasses import asdict, dataclass, fields, replace
 from importlib import metadata
-from typing import Literal, Optional
+from typing import Annotated, Literal, Optional
 
 import gymnasium as gym
 import numpy as np
@@ -48,6 +49,9 @@ import tyro
 
 @dataclass
 class Args:
+    """Behavioural cloning: the SAC actor learns the expert's actions from its states by supervised learning, with no
+    environment interaction, for a budget of gradient steps (--total-timesteps). Start it
+    with `python bc.py --env-id Hopper-v4`."""
     exp_name: str = "bc"
     """the name of this experiment"""
     seed: int = 1
@@ -66,11 +70,11 @@ class Args:
     """record a video of one deterministic episode at the end (needs `pip install moviepy`)"""
     save_model: bool = True
     """save the final actor (actor.pt) and the best held-out one (actor_best.pt)"""
-    run_name: Optional[str] = None
-    """run directory under runs/ (default: {env_id}__{exp_name}__{seed}__{unix_time})"""
+    run_name: Annotated[Optional[str], tyro.conf.arg(
+        help_behavior_hint="(default: {env_id}__{exp_name}__{seed}__{unix_time})")] = None
+    """the run directory under runs/"""
     resume: Optional[str] = None
-    """continue the run saved in this run directory (or checkpoint file); its config is reused,
-    except total_timesteps, cuda and threads when given on the command line"""
+    """continue this run (directory or checkpoint) on its config; --total-timesteps, --cuda, --threads may change"""
     checkpoint_freq: int = 50_000
     """write a resumable checkpoint every this many gradient steps (and on Ctrl-C / SIGTERM); 0 disables"""
     threads: int = 2
@@ -97,8 +101,8 @@ class Args:
     """episodes per evaluation"""
 
     # Imitation arguments
-    expert_path: Optional[str] = None
-    """demonstrations (default: experts/<env_id>.npz)"""
+    expert_path: Annotated[Optional[str], tyro.conf.arg(help_behavior_hint="(default: experts/<env-id>.npz)")] = None
+    """the demonstrations file"""
     num_expert_trajs: int = 25
     """use the first this many demonstration episodes"""
 
@@ -211,11 +215,11 @@ def load_demonstrations(path: str, env: gym.Env, num_trajs: Optional[int] = None
     With `state_only` the actions are dropped (a file without them loads). Each problem is one SystemExit line."""
     env_id, obs_dim, act_dim = env.spec.id, env.observation_space.shape[0], env.action_space.shape[0]
 
-    def fail(problem: str, fix: str = f"record them with `python expert.py --env-id {env_id}`"):
+    def fail(problem: str, fix: str = f"record them with `python expert.py --env-id {env_id}` (hours on a CPU)"):
         raise SystemExit(f"error: demonstrations '{path}' {problem}; {fix}")
 
     if not os.path.isfile(path):
-        fail("are missing", f"record them with `python expert.py --env-id {env_id}` or pass --expert-path")
+        fail(f"do not exist (experts/ has {sorted(n[:-4] for n in glob.glob('*.npz', root_dir='experts'))})")
     try:
         with np.load(path, allow_pickle=False) as f:
             data = {k: f[k] for k in f.files}
@@ -287,8 +291,8 @@ class Run:
     """The run's directory (config.json, TensorBoard, results.json with `extra`), evaluations, its `Checkpoints`."""
 
     def __init__(self, args, checkpoint: Optional[dict], stateful: dict, demos: Optional[dict], device,
-                 checkpoint_freq: int = 0):
-        self.args, self.extra, self.evals, self.start_step, self.sps = args, {}, [], 0, 0.0
+                 checkpoint_freq: int = 0, learning_starts: int = 0):
+        self.args, self.extra, self.evals, self.start_step, self.sps = args, {}, [], 0, None
         returns = demos["episode_returns"] if demos else np.array([np.nan])  # the normalized score's 1 (random's: 0)
         self.expert_return = float(returns.mean()) if np.isfinite(returns.mean()) else None
         self.random_return = demos["metadata"]["random_return"] if demos else None
@@ -300,7 +304,7 @@ class Run:
         self.writer, self.machine = tensorboard(args, self.name, self.dir), machine(device)
         self.start_time = time.time()  # time.time() - start_time: the run's wall time (a resumed run's included)
         self.checkpoints = Checkpoints(self, stateful, checkpoint_freq, checkpoint, device)
-        self.tick, self.shown, self.tty = (self.start_step, time.perf_counter()), 0.0, sys.stdout.isatty()
+        self.shown, self.tty, self.marks, self.learning_starts = 0.0, sys.stdout.isatty(), [], learning_starts
         expert = f"{len(returns)} demonstration episodes, return {returns.mean():.1f} | " if demos else ""
         print(f"{'resumed ' * bool(checkpoint)}{self.dir} at step {self.start_step} of {args.total_timesteps} | "
               f"{args.env_id} | {expert}{device}, threads {torch.get_num_threads()}", flush=True)
@@ -312,13 +316,13 @@ class Run:
 
     def end_step(self, step: int, act) -> None:
         """After env step `step` (counted from 1): an evaluation every --eval-freq steps, a checkpoint when due."""
-        if step % self.args.eval_freq == 0 or step == self.args.total_timesteps:
-            self.sps = (step - self.tick[0]) / (time.perf_counter() - self.tick[1])  # since the last evaluation
-            self.evaluate(step, act)
-            self.tick = (step, time.perf_counter())
-        elif self.tty and time.perf_counter() - self.shown > 10:
-            self.sps = (step - self.tick[0]) / (time.perf_counter() - self.tick[1])
-            self.show(step)
+        now, evaluation = time.perf_counter(), step % self.args.eval_freq == 0 or step == self.args.total_timesteps
+        if step > self.learning_starts and (not self.marks or now - self.marks[-1][1] >= 10):
+            self.marks = self.marks[-60:] + [(step, now)]  # every 10 s of learning: SPS over this process's last 10 min
+        if evaluation or (self.tty and now - self.shown > 10):  # on a terminal, progress every 10 s
+            first_step, first = self.marks[0] if self.marks else (step, now)
+            self.sps = (step - first_step) / (now - first) if now - first >= 60 else None  # None: not measured yet
+            self.evaluate(step, act) if evaluation else self.show(step)
         self.checkpoints.end_step(step)
 
     def evaluate(self, step: int, act) -> None:
@@ -332,10 +336,10 @@ class Run:
         self.show(step)
 
     def show(self, step: int) -> None:
-        """One line: steps, SPS, minutes so far and left, the latest evaluation (on a terminal, rewritten in place)."""
+        """One line: steps, minutes so far, SPS and minutes left, the latest evaluation (on a terminal, in place)."""
         total, last = self.args.total_timesteps, self.evals[-1] if self.evals else None
-        line = (f"step {step}/{total} | {self.sps:.0f} SPS | {(time.time() - self.start_time) / 60:.0f} min, "
-                f"{(total - step) / max(self.sps, 1e-6) / 60:.0f} min left")
+        rate = f"{self.sps:.0f} SPS, {(total - step) / self.sps / 60:.0f} min left" if self.sps else "SPS: measuring"
+        line = f"step {step}/{total} | {(time.time() - self.start_time) / 60:.0f} min | {rate}"
         if last:
             score = f" = {last['normalized']:.2f} normalized" if last["normalized"] is not None else ""
             line += f" | eval at {last['step']}: return {last['mean']:.1f} +- {last['std']:.1f}{score}"
@@ -421,8 +425,7 @@ def tensorboard(args, name: str, run_dir: str):
                    config=vars(args), name=name, id=name, resume="allow", save_code=True)
     from torch.utils.tensorboard import SummaryWriter
     writer = SummaryWriter(run_dir)
-    table = "\n".join(f"|{k}|{v}|" for k, v in asdict(args).items())
-    writer.add_text("hyperparameters", "|param|value|\n|-|-|\n" + table)
+    writer.add_text("hyperparameters", "|param|value|\n|-|-|" + "".join(f"\n|{k}|{v}|" for k, v in vars(args).items()))
     return writer
 
 

@@ -37,6 +37,7 @@ normalized_return}, losses/{student,trainer}_{qf_loss,qf_values,qf_target_var,ac
 losses/{disc_loss,disc_gp (always 0)}, disc/{expert,policy}_prob, reward/learned_mean. Details: docs/drail.md
 """
 
+import glob
 import json
 import math
 import os
@@ -49,7 +50,7 @@ import sys
 import time
 from dataclasses import asdict, dataclass, fields, replace
 from importlib import metadata
-from typing import Literal, NamedTuple, Optional
+from typing import Annotated, Literal, NamedTuple, Optional
 
 import gymnasium as gym
 import numpy as np
@@ -60,6 +61,11 @@ import tyro
 
 @dataclass
 class Args:
+    """DRAIL's diffusion discriminator, a conditional diffusion model that tells the expert's pairs from the agent's,
+    inside RILe (DRAIL-RILe, the default) or inside GAIL (DRAIL-GAIL, --student-reward gail), with SAC agents. Start it
+    with `python drail_disc.py --env-id Hopper-v4 --total-timesteps 200000` (the 1024-wide default discriminator is slow
+    on a CPU; --disc-hidden-dim 256 is cheaper). Flags marked "rile:" act in DRAIL-RILe only; "DRAIL's" values are from
+    arXiv 2405.16194, "the RILe paper's" from arXiv 2406.08472."""
     exp_name: str = "drail"
     """the name of this experiment"""
     seed: int = 1
@@ -78,11 +84,11 @@ class Args:
     """record a video of one deterministic episode at the end (needs `pip install moviepy`)"""
     save_model: bool = True
     """save the student's actor (actor.pt) and the diffusion discriminator (disc.pt)"""
-    run_name: Optional[str] = None
-    """run directory under runs/ (default: {env_id}__{exp_name}-{student_reward}__{seed}__{unix_time})"""
+    run_name: Annotated[Optional[str], tyro.conf.arg(
+        help_behavior_hint="(default: {env_id}__{exp_name}-{student_reward}__{seed}__{unix_time})")] = None
+    """the run directory under runs/"""
     resume: Optional[str] = None
-    """continue the run saved in this run directory (or checkpoint file); its config is reused,
-    except total_timesteps, cuda and threads when given on the command line"""
+    """continue this run (directory or checkpoint) on its config; --total-timesteps, --cuda, --threads may change"""
     checkpoint_freq: int = 50_000
     """write a resumable checkpoint every this many env steps (and on Ctrl-C / SIGTERM); 0 disables"""
     threads: int = 2
@@ -96,32 +102,31 @@ class Args:
     total_timesteps: int = 1_000_000
     """total env steps of training"""
     buffer_size: int = 1_000_000
-    """the replay buffer size"""
+    """the replay buffer size (the RILe paper's)"""
     gamma: float = 0.99
-    """the discount factor"""
+    """the discount factor (the RILe paper's)"""
     tau: float = 0.005
     """the target smoothing coefficient"""
     batch_size: int = 256
-    """the batch size of a SAC update"""
+    """the batch size of a SAC update (the RILe paper's)"""
     learning_starts: int = 5_000
     """env steps of uniform random actions before any update"""
     policy_lr: float = 3e-4
-    """the learning rate of the actor"""
+    """the learning rate of the actor (the RILe paper's)"""
     q_lr: float = 3e-4
-    """the learning rate of the critics"""
+    """the learning rate of the critics (the RILe paper's)"""
     alpha: float = 0.2
-    """the entropy temperature"""
+    """the entropy temperature (the RILe paper's)"""
     autotune: bool = False
-    """tune the temperature towards -|A| (the paper fixes it at 0.2)"""
+    """tune the temperature towards an entropy of -|A|; off, a fixed --alpha (the RILe paper's)"""
     hidden_dim: int = 256
-    """width of the actor's and critics' two hidden layers"""
+    """width of the actor's and critics' two hidden layers (the RILe paper's)"""
     epsilon: float = 0.2
-    """rile: probability that the student takes a uniform random action (epsilon-greedy)"""
+    """rile: probability that the student takes a uniform random action, epsilon-greedy (the RILe paper's)"""
     termination_remedy: Literal["none", "survival", "absorbing"] = "absorbing"
-    """absorbing: DAC's absorbing states for agent and expert data (both variants; rile.py's default);
-    none: terminations are terminal; survival (rile only): r_S = (1 + a_T) / 2"""
+    """absorbing: DAC's absorbing states; survival (rile only): r_S = (1 + a_T) / 2; none (the RILe paper's)"""
     reward_form: Literal["softplus", "logit", "log-d"] = "logit"
-    """gail: the SAC reward from D's logit (logit = log D - log(1 - D), DRAIL's default)"""
+    """gail: the SAC reward from D: logit, log D - log(1 - D) (DRAIL's); softplus, -log(1 - D); log-d, log D"""
     eval_freq: int = 10_000
     """evaluate the deterministic policy every this many env steps"""
     eval_episodes: int = 10
@@ -130,47 +135,46 @@ class Args:
     # Trainer arguments (rile)
     trainer_reward: Literal["difference", "exp-difference", "multiplication", "naive", "exp-naive",
                             "sigmoid"] = "exp-difference"
-    """the trainer's reward (the paper's ablation); v(D) = 2D - 1"""
+    """the trainer's reward, one of the RILe paper's six; v(D) = 2D - 1 (the RILe paper's)"""
     trainer_buffer_size: int = 16_384
-    """the trainer learns from this many most recent transitions"""
+    """the trainer learns from this many most recent transitions (the RILe paper's)"""
     trainer_batch_size: int = 256
-    """the trainer's batch size"""
+    """the trainer's batch size (the RILe paper's)"""
     trainer_hidden_dim: int = 256
-    """width of the trainer's two hidden layers"""
+    """width of the trainer's two hidden layers (the RILe paper's)"""
     trainer_lr: float = 3e-4
-    """the trainer's learning rate (actor and critics)"""
+    """the trainer's learning rate, actor and critics (the RILe paper's)"""
     trainer_gamma: float = 0.99
-    """the trainer's discount factor"""
+    """the trainer's discount factor (the RILe paper's)"""
     trainer_alpha: float = 0.2
-    """the trainer's entropy temperature (fixed)"""
+    """the trainer's entropy temperature, fixed (the RILe paper's)"""
     trainer_tau: float = 0.005
     """the trainer's target smoothing coefficient"""
     trainer_freeze: bool = True
-    """freeze the trainer once its critic has converged (rile.py's header, choice 5)"""
+    """freeze the trainer once its critic has converged (the RILe paper's), by the --trainer-freeze-* test"""
     trainer_freeze_stat: Literal["relative", "reward", "excess", "loss"] = "reward"
-    """the trainer's critic loss relative to its targets' variance (relative), to its reward's (reward), beyond its
-    targets' own sampling variance relative to its reward's (excess), or raw (loss: the paper's words)"""
+    """freeze on critic loss L: excess (L - var targets)/var r_T, reward L/var r_T, relative L/var targets, loss L"""
     trainer_freeze_threshold: float = 0.1
-    """freeze when the moving average (0.99) of --trainer-freeze-stat stays below this"""
+    """freeze when the moving average (0.99) of --trainer-freeze-stat stays below this (the RILe paper's)"""
     trainer_freeze_window: int = 10_000
     """env steps the statistic must stay below the threshold (0: the first crossing freezes)"""
-    trainer_freeze_after: Optional[int] = None
-    """never freeze before this env step (default: 3/4 of --total-timesteps)"""
+    trainer_freeze_after: Annotated[Optional[int], tyro.conf.arg(
+        help_behavior_hint="(default: 3/4 of --total-timesteps)")] = None
+    """never freeze before this env step"""
     trainer_freeze_min_updates: int = 10_000
     """never freeze before this many trainer updates"""
     trainer_release_threshold: float = 1.0
-    """a frozen trainer learns again when the statistic, on D's current rewards, rises above this (inf: never)"""
+    """a frozen trainer learns again once the statistic on D's current rewards passes this (the RILe paper's: inf)"""
     trainer_obs: Literal["state-action", "transition"] = "state-action"
-    """rile: what the trainer observes: the student's (s, a_S) (paper), or its transition (s, s') (needs
-    --state-only)"""
+    """rile: what the trainer observes: the student's (s, a_S), or its (s, s') with --state-only (the RILe paper's)"""
 
     # Diffusion discriminator arguments
     disc_hidden_dim: int = 1024
-    """width of the three hidden layers (DRAIL: 1024; 256 is ~16x cheaper on a CPU, and less faithful)"""
+    """width of the three hidden layers (DRAIL's; 256 is ~16x cheaper on a CPU, and less faithful)"""
     disc_lr: float = 1e-4
     """the discriminator's learning rate"""
     disc_batch_size: int = 128
-    """expert pairs and agent pairs per discriminator update (each; even, for antithetic timesteps)"""
+    """expert pairs and agent pairs per discriminator update, each; even, for antithetic timesteps"""
     disc_update_every: int = 1
     """one discriminator update every this many env steps"""
     disc_buffer_size: int = 16_384
@@ -178,26 +182,27 @@ class Args:
     diffusion_steps: int = 1000
     """T, the number of diffusion steps"""
     shared_noise: bool = False
-    """use the same (t, noise) for both labels (lower variance; the authors draw them independently)"""
+    """give both labels the same (t, noise) draw, for a lower-variance D; off, independent draws (DRAIL's)"""
     num_draws: int = 1
-    """average D's logit over this many (t, noise) draws (lower variance; the authors use 1)"""
+    """average D's logit over this many (t, noise) draws, for a lower-variance D (DRAIL's)"""
 
     # Imitation arguments
-    expert_path: Optional[str] = None
-    """demonstrations (default: experts/<env_id>.npz)"""
+    expert_path: Annotated[Optional[str], tyro.conf.arg(help_behavior_hint="(default: experts/<env-id>.npz)")] = None
+    """the demonstrations file"""
     num_expert_trajs: int = 25
-    """use the first this many demonstration episodes"""
+    """use the first this many demonstration episodes (the RILe paper's)"""
     state_only: bool = False
-    """imitate from states only: the demonstrations' actions are not used (none needed) and the discriminator
-    scores transitions (s, s') instead of pairs (s, a)"""
+    """imitate from states only: D scores (s, s') instead of (s, a), and no demonstration actions are needed"""
     expert_action_noise: float = 0.0
-    """std of Gaussian noise added to the expert's actions (noise-robustness experiment)"""
+    """std of Gaussian noise on the demonstrations' actions, drawn once per run from --seed, clipped to the box"""
+    expert_noise_clip: bool = True
+    """clip the noisy demonstration actions to the action box (--no-expert-noise-clip: leave them outside it)"""
     expert_state_noise: float = 0.0
-    """std of Gaussian noise added to the expert's states (noise-robustness experiment)"""
+    """std of Gaussian noise on the demonstrations' states and next states, drawn once per run from --seed"""
     student_expert_fraction: float = 0.0
-    """rile: share of every student batch drawn from expert pairs (explicit-expert-data experiment)"""
+    """rile: share of every student batch drawn from expert pairs (the RILe paper's)"""
     trainer_expert_fraction: float = 0.0
-    """rile: share of every trainer batch drawn from expert pairs (explicit-expert-data experiment)"""
+    """rile: share of every trainer batch drawn from expert pairs (the RILe paper's)"""
 
 
 # ALGO LOGIC: DRAIL's diffusion discriminator, in gail.py's update (DRAIL-GAIL) or rile.py's (DRAIL-RILe)
@@ -812,11 +817,11 @@ def load_demonstrations(path: str, env: gym.Env, num_trajs: Optional[int] = None
     With `state_only` the actions are dropped (a file without them loads). Each problem is one SystemExit line."""
     env_id, obs_dim, act_dim = env.spec.id, env.observation_space.shape[0], env.action_space.shape[0]
 
-    def fail(problem: str, fix: str = f"record them with `python expert.py --env-id {env_id}`"):
+    def fail(problem: str, fix: str = f"record them with `python expert.py --env-id {env_id}` (hours on a CPU)"):
         raise SystemExit(f"error: demonstrations '{path}' {problem}; {fix}")
 
     if not os.path.isfile(path):
-        fail("are missing", f"record them with `python expert.py --env-id {env_id}` or pass --expert-path")
+        fail(f"do not exist (experts/ has {sorted(n[:-4] for n in glob.glob('*.npz', root_dir='experts'))})")
     try:
         with np.load(path, allow_pickle=False) as f:
             data = {k: f[k] for k in f.files}
@@ -905,8 +910,8 @@ class Run:
     """The run's directory (config.json, TensorBoard, results.json with `extra`), evaluations, its `Checkpoints`."""
 
     def __init__(self, args, checkpoint: Optional[dict], stateful: dict, demos: Optional[dict], device,
-                 checkpoint_freq: int = 0):
-        self.args, self.extra, self.evals, self.start_step, self.sps = args, {}, [], 0, 0.0
+                 checkpoint_freq: int = 0, learning_starts: int = 0):
+        self.args, self.extra, self.evals, self.start_step, self.sps = args, {}, [], 0, None
         returns = demos["episode_returns"] if demos else np.array([np.nan])  # the normalized score's 1 (random's: 0)
         self.expert_return = float(returns.mean()) if np.isfinite(returns.mean()) else None
         self.random_return = demos["metadata"]["random_return"] if demos else None
@@ -918,7 +923,7 @@ class Run:
         self.writer, self.machine = tensorboard(args, self.name, self.dir), machine(device)
         self.start_time = time.time()  # time.time() - start_time: the run's wall time (a resumed run's included)
         self.checkpoints = Checkpoints(self, stateful, checkpoint_freq, checkpoint, device)
-        self.tick, self.shown, self.tty = (self.start_step, time.perf_counter()), 0.0, sys.stdout.isatty()
+        self.shown, self.tty, self.marks, self.learning_starts = 0.0, sys.stdout.isatty(), [], learning_starts
         expert = f"{len(returns)} demonstration episodes, return {returns.mean():.1f} | " if demos else ""
         print(f"{'resumed ' * bool(checkpoint)}{self.dir} at step {self.start_step} of {args.total_timesteps} | "
               f"{args.env_id} | {expert}{device}, threads {torch.get_num_threads()}", flush=True)
@@ -930,13 +935,13 @@ class Run:
 
     def end_step(self, step: int, act) -> None:
         """After env step `step` (counted from 1): an evaluation every --eval-freq steps, a checkpoint when due."""
-        if step % self.args.eval_freq == 0 or step == self.args.total_timesteps:
-            self.sps = (step - self.tick[0]) / (time.perf_counter() - self.tick[1])  # since the last evaluation
-            self.evaluate(step, act)
-            self.tick = (step, time.perf_counter())
-        elif self.tty and time.perf_counter() - self.shown > 10:
-            self.sps = (step - self.tick[0]) / (time.perf_counter() - self.tick[1])
-            self.show(step)
+        now, evaluation = time.perf_counter(), step % self.args.eval_freq == 0 or step == self.args.total_timesteps
+        if step > self.learning_starts and (not self.marks or now - self.marks[-1][1] >= 10):
+            self.marks = self.marks[-60:] + [(step, now)]  # every 10 s of learning: SPS over this process's last 10 min
+        if evaluation or (self.tty and now - self.shown > 10):  # on a terminal, progress every 10 s
+            first_step, first = self.marks[0] if self.marks else (step, now)
+            self.sps = (step - first_step) / (now - first) if now - first >= 60 else None  # None: not measured yet
+            self.evaluate(step, act) if evaluation else self.show(step)
         self.checkpoints.end_step(step)
 
     def evaluate(self, step: int, act) -> None:
@@ -950,10 +955,10 @@ class Run:
         self.show(step)
 
     def show(self, step: int) -> None:
-        """One line: steps, SPS, minutes so far and left, the latest evaluation (on a terminal, rewritten in place)."""
+        """One line: steps, minutes so far, SPS and minutes left, the latest evaluation (on a terminal, in place)."""
         total, last = self.args.total_timesteps, self.evals[-1] if self.evals else None
-        line = (f"step {step}/{total} | {self.sps:.0f} SPS | {(time.time() - self.start_time) / 60:.0f} min, "
-                f"{(total - step) / max(self.sps, 1e-6) / 60:.0f} min left")
+        rate = f"{self.sps:.0f} SPS, {(total - step) / self.sps / 60:.0f} min left" if self.sps else "SPS: measuring"
+        line = f"step {step}/{total} | {(time.time() - self.start_time) / 60:.0f} min | {rate}"
         if last:
             score = f" = {last['normalized']:.2f} normalized" if last["normalized"] is not None else ""
             line += f" | eval at {last['step']}: return {last['mean']:.1f} +- {last['std']:.1f}{score}"
@@ -1039,8 +1044,7 @@ def tensorboard(args, name: str, run_dir: str):
                    config=vars(args), name=name, id=name, resume="allow", save_code=True)
     from torch.utils.tensorboard import SummaryWriter
     writer = SummaryWriter(run_dir)
-    table = "\n".join(f"|{k}|{v}|" for k, v in asdict(args).items())
-    writer.add_text("hyperparameters", "|param|value|\n|-|-|\n" + table)
+    writer.add_text("hyperparameters", "|param|value|\n|-|-|" + "".join(f"\n|{k}|{v}|" for k, v in vars(args).items()))
     return writer
 
 
@@ -1095,7 +1099,8 @@ if __name__ == "__main__":
     low, high = env.action_space.low, env.action_space.high
     demos = load_demonstrations(args.expert_path or f"experts/{args.env_id}.npz", env, args.num_expert_trajs,
                                 args.state_only)
-    expert = expert_tensors(demos, args.seed, device, args.expert_state_noise, args.expert_action_noise, low, high)
+    clip = (low, high) if args.expert_noise_clip else (-np.inf, np.inf)  # where noisy expert actions may lie
+    expert = expert_tensors(demos, args.seed, device, args.expert_state_noise, args.expert_action_noise, *clip)
     absorbing = args.termination_remedy == "absorbing"
     if absorbing:
         expert = absorbing_expert(expert)
@@ -1123,7 +1128,8 @@ if __name__ == "__main__":
                 "rile": state}
     if not args.run_name:  # the two variants' runs apart
         args.run_name = f"{args.env_id}__{args.exp_name}-{args.student_reward}__{args.seed}__{int(time.time())}"
-    run = Run(args, checkpoint, stateful, demos, device, checkpoint_freq=args.checkpoint_freq)
+    run = Run(args, checkpoint, stateful, demos, device, checkpoint_freq=args.checkpoint_freq,
+              learning_starts=args.learning_starts)
 
     # TRY NOT TO MODIFY: start the game
     obs, _ = env.reset(seed=args.seed + run.start_step)

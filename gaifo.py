@@ -24,6 +24,7 @@ qf_values,qf_target_var,actor_loss,alpha_loss,alpha,entropy,disc_loss,disc_gp}, 
 reward/learned_{mean,std}, dynamics/* (rile.py's reward measures, every --dynamics-freq). Details: docs/baselines.md
 """
 
+import glob
 import json
 import os
 import platform
@@ -35,7 +36,7 @@ import sys
 import time
 from dataclasses import asdict, dataclass, fields, replace
 from importlib import metadata
-from typing import Literal, NamedTuple, Optional
+from typing import Annotated, Literal, NamedTuple, Optional
 
 import gymnasium as gym
 import numpy as np
@@ -47,6 +48,10 @@ import tyro
 
 @dataclass
 class Args:
+    """GAIfO on SAC, imitation from observation: a discriminator tells the expert's (state, next state) pairs from the
+    agent's, so the expert's actions are never needed, and a SAC agent learns from the reward it gives. Start it
+    with `python gaifo.py --env-id Hopper-v4 --total-timesteps 200000`. "The RILe paper's" values are the GAIL setting
+    of arXiv 2406.08472, as in gail.py."""
     exp_name: str = "gaifo"
     """the name of this experiment"""
     seed: int = 1
@@ -65,11 +70,11 @@ class Args:
     """record a video of one deterministic episode at the end (needs `pip install moviepy`)"""
     save_model: bool = True
     """save the actor (actor.pt) and the learned reward (reward.pt) in the run directory"""
-    run_name: Optional[str] = None
-    """run directory under runs/ (default: {env_id}__{exp_name}__{seed}__{unix_time})"""
+    run_name: Annotated[Optional[str], tyro.conf.arg(
+        help_behavior_hint="(default: {env_id}__{exp_name}__{seed}__{unix_time})")] = None
+    """the run directory under runs/"""
     resume: Optional[str] = None
-    """continue the run saved in this run directory (or checkpoint file); its config is reused,
-    except total_timesteps, cuda and threads when given on the command line"""
+    """continue this run (directory or checkpoint) on its config; --total-timesteps, --cuda, --threads may change"""
     checkpoint_freq: int = 50_000
     """write a resumable checkpoint every this many env steps (and on Ctrl-C / SIGTERM); 0 disables"""
     threads: int = 2
@@ -81,31 +86,29 @@ class Args:
     total_timesteps: int = 1_000_000
     """total env steps of training"""
     buffer_size: int = 1_000_000
-    """the replay buffer size"""
+    """the replay buffer size (the RILe paper's)"""
     gamma: float = 0.99
-    """the discount factor"""
+    """the discount factor (the RILe paper's)"""
     tau: float = 0.01
-    """the target smoothing coefficient (0.01: the paper's GAIL setting)"""
+    """the target smoothing coefficient (the RILe paper's)"""
     batch_size: int = 256
-    """the batch size of a SAC update"""
+    """the batch size of a SAC update (the RILe paper's)"""
     learning_starts: int = 5_000
     """env steps of uniform random actions before any update"""
     policy_lr: float = 3e-4
-    """the learning rate of the actor"""
+    """the learning rate of the actor (the RILe paper's)"""
     q_lr: float = 3e-4
-    """the learning rate of the critics"""
+    """the learning rate of the critics (the RILe paper's)"""
     alpha: float = 0.2
-    """the entropy temperature"""
+    """the entropy temperature (the RILe paper's)"""
     autotune: bool = False
-    """tune the temperature towards -|A| (the paper fixes it at 0.2)"""
+    """tune the temperature towards an entropy of -|A|; off, a fixed --alpha (the RILe paper's)"""
     hidden_dim: int = 256
-    """width of the actor's and critics' two hidden layers"""
+    """width of the actor's and critics' two hidden layers (the RILe paper's)"""
     reward_form: Literal["softplus", "logit", "log-d"] = "softplus"
     """softplus: -log(1 - D); logit: log D - log(1 - D); log-d: log D"""
     termination_remedy: Literal["none", "absorbing"] = "none"
-    """none: a termination ends bootstrapping (the default softplus reward >= 0 already pays to survive);
-    absorbing: DAC's absorbing states for agent and expert data (rile.py's flag; its `survival` is
-    the non-negative reward form here)"""
+    """none: terminations end bootstrapping (softplus >= 0 already pays to survive); absorbing: DAC's absorbing state"""
     eval_freq: int = 10_000
     """evaluate the deterministic policy every this many env steps"""
     eval_episodes: int = 10
@@ -113,33 +116,31 @@ class Args:
 
     # Discriminator arguments
     disc_hidden_dim: int = 64
-    """width of the discriminator's two hidden layers"""
+    """width of the discriminator's two hidden layers (the RILe paper's)"""
     disc_lr: float = 3e-5
-    """the discriminator's learning rate"""
+    """the discriminator's learning rate (the RILe paper's)"""
     disc_batch_size: int = 32
-    """expert pairs and agent pairs per discriminator update (each)"""
+    """expert pairs and agent pairs per discriminator update, each (the RILe paper's)"""
     disc_buffer_size: int = 16_384
-    """the discriminator learns from this many most recent agent transitions"""
+    """the discriminator learns from this many most recent agent transitions (the RILe paper's)"""
     disc_gp: float = 1.0
-    """weight of the gradient penalty"""
+    """weight of the gradient penalty (the RILe paper's)"""
     disc_gp_center: float = 1.0
-    """the norm the gradient penalty pulls D's input gradient towards: 1 (one-centred, DAC's) or 0 (zero-centred)"""
+    """the norm the gradient penalty pulls D's input gradient towards: 1, DAC's one-centred form, or 0, zero-centred"""
     disc_update_every: int = 1
-    """one discriminator update every this many env steps (the paper's "1 update per round")"""
+    """one discriminator update every this many env steps (the RILe paper's)"""
     disc_normalize: Literal["none", "demos", "pooled"] = "none"
-    """standardise the discriminator's inputs (its gradient penalty then acts in those units): not at all
-    (default); by the running statistics of its training batches, expert and agent pairs pooled; by the
-    demonstrations' mean and std"""
+    """standardise D's inputs: demos, by the demos' mean and std; pooled, by running ones; none (the RILe paper's)"""
 
     # Imitation arguments
-    expert_path: Optional[str] = None
-    """demonstrations (default: experts/<env_id>.npz)"""
+    expert_path: Annotated[Optional[str], tyro.conf.arg(help_behavior_hint="(default: experts/<env-id>.npz)")] = None
+    """the demonstrations file (its actions are never read)"""
     num_expert_trajs: int = 25
     """use the first this many demonstration episodes"""
     expert_state_noise: float = 0.0
-    """std of Gaussian noise added to the expert's states (noise-robustness experiment)"""
+    """std of Gaussian noise on the demonstrations' states and next states, drawn once per run from --seed"""
     dynamics_freq: int = 10_000
-    """measure the learned reward every this many steps (r_S, D, RFDC, FS-RFDC, CPR; header); 0 disables"""
+    """measure the learned reward (r_S, D, RFDC, FS-RFDC, CPR) into results.json every this many steps; 0 disables"""
 
 
 # ALGO LOGIC: the discriminator, then GAIL's reward and update, here on transitions (s, s')
@@ -569,11 +570,11 @@ def load_demonstrations(path: str, env: gym.Env, num_trajs: Optional[int] = None
     With `state_only` the actions are dropped (a file without them loads). Each problem is one SystemExit line."""
     env_id, obs_dim, act_dim = env.spec.id, env.observation_space.shape[0], env.action_space.shape[0]
 
-    def fail(problem: str, fix: str = f"record them with `python expert.py --env-id {env_id}`"):
+    def fail(problem: str, fix: str = f"record them with `python expert.py --env-id {env_id}` (hours on a CPU)"):
         raise SystemExit(f"error: demonstrations '{path}' {problem}; {fix}")
 
     if not os.path.isfile(path):
-        fail("are missing", f"record them with `python expert.py --env-id {env_id}` or pass --expert-path")
+        fail(f"do not exist (experts/ has {sorted(n[:-4] for n in glob.glob('*.npz', root_dir='experts'))})")
     try:
         with np.load(path, allow_pickle=False) as f:
             data = {k: f[k] for k in f.files}
@@ -662,8 +663,8 @@ class Run:
     """The run's directory (config.json, TensorBoard, results.json with `extra`), evaluations, its `Checkpoints`."""
 
     def __init__(self, args, checkpoint: Optional[dict], stateful: dict, demos: Optional[dict], device,
-                 checkpoint_freq: int = 0):
-        self.args, self.extra, self.evals, self.start_step, self.sps = args, {}, [], 0, 0.0
+                 checkpoint_freq: int = 0, learning_starts: int = 0):
+        self.args, self.extra, self.evals, self.start_step, self.sps = args, {}, [], 0, None
         returns = demos["episode_returns"] if demos else np.array([np.nan])  # the normalized score's 1 (random's: 0)
         self.expert_return = float(returns.mean()) if np.isfinite(returns.mean()) else None
         self.random_return = demos["metadata"]["random_return"] if demos else None
@@ -675,7 +676,7 @@ class Run:
         self.writer, self.machine = tensorboard(args, self.name, self.dir), machine(device)
         self.start_time = time.time()  # time.time() - start_time: the run's wall time (a resumed run's included)
         self.checkpoints = Checkpoints(self, stateful, checkpoint_freq, checkpoint, device)
-        self.tick, self.shown, self.tty = (self.start_step, time.perf_counter()), 0.0, sys.stdout.isatty()
+        self.shown, self.tty, self.marks, self.learning_starts = 0.0, sys.stdout.isatty(), [], learning_starts
         expert = f"{len(returns)} demonstration episodes, return {returns.mean():.1f} | " if demos else ""
         print(f"{'resumed ' * bool(checkpoint)}{self.dir} at step {self.start_step} of {args.total_timesteps} | "
               f"{args.env_id} | {expert}{device}, threads {torch.get_num_threads()}", flush=True)
@@ -687,13 +688,13 @@ class Run:
 
     def end_step(self, step: int, act) -> None:
         """After env step `step` (counted from 1): an evaluation every --eval-freq steps, a checkpoint when due."""
-        if step % self.args.eval_freq == 0 or step == self.args.total_timesteps:
-            self.sps = (step - self.tick[0]) / (time.perf_counter() - self.tick[1])  # since the last evaluation
-            self.evaluate(step, act)
-            self.tick = (step, time.perf_counter())
-        elif self.tty and time.perf_counter() - self.shown > 10:
-            self.sps = (step - self.tick[0]) / (time.perf_counter() - self.tick[1])
-            self.show(step)
+        now, evaluation = time.perf_counter(), step % self.args.eval_freq == 0 or step == self.args.total_timesteps
+        if step > self.learning_starts and (not self.marks or now - self.marks[-1][1] >= 10):
+            self.marks = self.marks[-60:] + [(step, now)]  # every 10 s of learning: SPS over this process's last 10 min
+        if evaluation or (self.tty and now - self.shown > 10):  # on a terminal, progress every 10 s
+            first_step, first = self.marks[0] if self.marks else (step, now)
+            self.sps = (step - first_step) / (now - first) if now - first >= 60 else None  # None: not measured yet
+            self.evaluate(step, act) if evaluation else self.show(step)
         self.checkpoints.end_step(step)
 
     def evaluate(self, step: int, act) -> None:
@@ -707,10 +708,10 @@ class Run:
         self.show(step)
 
     def show(self, step: int) -> None:
-        """One line: steps, SPS, minutes so far and left, the latest evaluation (on a terminal, rewritten in place)."""
+        """One line: steps, minutes so far, SPS and minutes left, the latest evaluation (on a terminal, in place)."""
         total, last = self.args.total_timesteps, self.evals[-1] if self.evals else None
-        line = (f"step {step}/{total} | {self.sps:.0f} SPS | {(time.time() - self.start_time) / 60:.0f} min, "
-                f"{(total - step) / max(self.sps, 1e-6) / 60:.0f} min left")
+        rate = f"{self.sps:.0f} SPS, {(total - step) / self.sps / 60:.0f} min left" if self.sps else "SPS: measuring"
+        line = f"step {step}/{total} | {(time.time() - self.start_time) / 60:.0f} min | {rate}"
         if last:
             score = f" = {last['normalized']:.2f} normalized" if last["normalized"] is not None else ""
             line += f" | eval at {last['step']}: return {last['mean']:.1f} +- {last['std']:.1f}{score}"
@@ -796,8 +797,7 @@ def tensorboard(args, name: str, run_dir: str):
                    config=vars(args), name=name, id=name, resume="allow", save_code=True)
     from torch.utils.tensorboard import SummaryWriter
     writer = SummaryWriter(run_dir)
-    table = "\n".join(f"|{k}|{v}|" for k, v in asdict(args).items())
-    writer.add_text("hyperparameters", "|param|value|\n|-|-|\n" + table)
+    writer.add_text("hyperparameters", "|param|value|\n|-|-|" + "".join(f"\n|{k}|{v}|" for k, v in vars(args).items()))
     return writer
 
 
@@ -865,7 +865,8 @@ if __name__ == "__main__":
     measures = {"interval": None, "demos": None, "history": []}  # reward_measures' memory
     stateful = {"agent": agent, "disc": disc, "disc_optimizer": disc.optimizer, "replay_buffer": rb,
                 "measures": measures}
-    run = Run(args, checkpoint, stateful, demos, device, checkpoint_freq=args.checkpoint_freq)
+    run = Run(args, checkpoint, stateful, demos, device, checkpoint_freq=args.checkpoint_freq,
+              learning_starts=args.learning_starts)
     run.extra = {"reward_measures": measures["history"]}
     disc_input = lambda data: torch.cat([data["obs"], data["next_obs"]], -1)
     r_of = lambda data: gail_reward(disc(disc_input(data)), args.reward_form)

@@ -30,6 +30,8 @@ Implementation choices and deviations (the measurements behind each: docs/rile.m
    --state-only). Kept: the paper's 0 did worse than both default seeds on HalfCheetah-v4 and Walker2d-v4.
 9. The paper's experiments as flags: `--trainer-reward` (its six rewards), `--expert-action-noise`,
    `--expert-state-noise`, `--reward-from` with `--student-action-noise` (covariate shift), `--student-expert-fraction`.
+   Demonstration noise is drawn once per run from --seed (one noisy demonstrator), actions clipped to the box
+   (`--no-expert-noise-clip`: the paper does not say); its 0.2 and 0.5 on a [-0.4, 0.4] box are 0.5 and 1.25 on [-1, 1].
 10. From states only (`--state-only`): D scores (s, s') as in GAIfO; the trainer observes (s, a_S), or (s, s') with
    `--trainer-obs transition`.
 11. The trainer's discount is 0.9 (`--trainer-gamma`). Its action does not change its next observation, so its best
@@ -44,6 +46,7 @@ trainer/{frozen,critic_loss_ema}; every --dynamics-freq steps the reward measure
 student, r_s_follows_d, the freeze statistics, RFDC, FS-RFDC, CPR) in results.json: docs/rile.md.
 """
 
+import glob
 import json
 import os
 import platform
@@ -55,7 +58,7 @@ import sys
 import time
 from dataclasses import asdict, dataclass, fields, replace
 from importlib import metadata
-from typing import Literal, NamedTuple, Optional
+from typing import Annotated, Literal, NamedTuple, Optional
 
 import gymnasium as gym
 import numpy as np
@@ -67,6 +70,10 @@ import tyro
 
 @dataclass
 class Args:
+    """RILe, reinforced imitation learning: a SAC student learns from the reward a second SAC agent, the trainer,
+    gives it, and the trainer is rewarded by a discriminator that tells the expert's state-action pairs from the
+    student's. Start it with `python rile.py --env-id Hopper-v4 --total-timesteps 200000` (demonstrations from
+    experts/Hopper-v4.npz). "The paper" below is the RILe paper, arXiv 2406.08472."""
     exp_name: str = "rile"
     """the name of this experiment"""
     seed: int = 1
@@ -85,11 +92,11 @@ class Args:
     """record a video of one deterministic episode at the end (needs `pip install moviepy`)"""
     save_model: bool = True
     """save the actor (actor.pt) and the learned reward (reward.pt) in the run directory"""
-    run_name: Optional[str] = None
-    """run directory under runs/ (default: {env_id}__{exp_name}__{seed}__{unix_time})"""
+    run_name: Annotated[Optional[str], tyro.conf.arg(
+        help_behavior_hint="(default: {env_id}__{exp_name}__{seed}__{unix_time})")] = None
+    """the run directory under runs/"""
     resume: Optional[str] = None
-    """continue the run saved in this run directory (or checkpoint file); its config is reused,
-    except total_timesteps, cuda and threads when given on the command line"""
+    """continue this run (directory or checkpoint) on its config; --total-timesteps, --cuda, --threads may change"""
     checkpoint_freq: int = 50_000
     """write a resumable checkpoint every this many env steps (and on Ctrl-C / SIGTERM); 0 disables"""
     threads: int = 2
@@ -101,29 +108,29 @@ class Args:
     total_timesteps: int = 1_000_000
     """total env steps of training"""
     buffer_size: int = 1_000_000
-    """the replay buffer size"""
+    """the replay buffer size (the paper's)"""
     gamma: float = 0.99
-    """the discount factor"""
+    """the discount factor (the paper's)"""
     tau: float = 0.005
     """the target smoothing coefficient"""
     batch_size: int = 256
-    """the batch size of a SAC update"""
+    """the batch size of a SAC update (the paper's)"""
     learning_starts: int = 5_000
     """env steps of uniform random actions before any update"""
     policy_lr: float = 3e-4
-    """the learning rate of the actor"""
+    """the learning rate of the actor (the paper's)"""
     q_lr: float = 3e-4
-    """the learning rate of the critics"""
+    """the learning rate of the critics (the paper's)"""
     alpha: float = 0.2
-    """the entropy temperature"""
+    """the entropy temperature (the paper's)"""
     autotune: bool = True
-    """tune the student's temperature towards -|A| (--no-autotune: the paper's fixed 0.2; header, choice 7)"""
+    """tune the student's temperature towards an entropy of -|A| (the paper's: --no-autotune, a fixed 0.2)"""
     hidden_dim: int = 256
-    """width of the actor's and critics' two hidden layers"""
+    """width of the actor's and critics' two hidden layers (the paper's)"""
     epsilon: float = 0.2
-    """probability that the student takes a uniform random action (epsilon-greedy)"""
+    """probability that the student takes a uniform random action, epsilon-greedy (the paper's)"""
     termination_remedy: Literal["none", "survival", "absorbing"] = "absorbing"
-    """absorbing: DAC's absorbing states for student and expert; survival: r_S = (1 + a_T) / 2; none: the paper's"""
+    """absorbing: DAC's absorbing states for student and expert; survival: r_S = (1 + a_T) / 2; none (the paper's)"""
     eval_freq: int = 10_000
     """evaluate the deterministic policy every this many env steps"""
     eval_episodes: int = 10
@@ -131,86 +138,84 @@ class Args:
 
     # Trainer arguments
     student_reward: Literal["trainer", "discriminator"] = "trainer"
-    """trainer: r_S = a_T (RILe); discriminator: the control, r_S = v(D) = 2D - 1, no trainer (header, choice 12)"""
+    """trainer: r_S = a_T (the paper's); discriminator: r_S = v(D) = 2D - 1 with no trainer, a control"""
     trainer_reward: Literal["difference", "exp-difference", "multiplication", "naive", "exp-naive",
                             "sigmoid"] = "exp-difference"
-    """the trainer's reward (the paper's ablation); v(D) = 2D - 1"""
+    """the trainer's reward, one of the paper's six; exp-difference: exp(-|v(D) - a_T|), v(D) = 2D - 1 (the paper's)"""
     trainer_buffer_size: int = 16_384
-    """the trainer learns from this many most recent transitions"""
+    """the trainer learns from this many most recent transitions (the paper's)"""
     trainer_batch_size: int = 256
-    """the trainer's batch size"""
+    """the trainer's batch size (the paper's)"""
     trainer_hidden_dim: int = 256
-    """width of the trainer's two hidden layers"""
+    """width of the trainer's two hidden layers (the paper's)"""
     trainer_lr: float = 3e-4
-    """the trainer's learning rate (actor and critics)"""
+    """the trainer's learning rate, actor and critics (the paper's)"""
     trainer_gamma: float = 0.9
-    """the trainer's discount factor (the paper's: 0.99; header, choice 11)"""
+    """the trainer's discount factor; its best action, v(D), does not depend on it (the paper's: 0.99)"""
     trainer_alpha: float = 0.2
-    """the trainer's entropy temperature (fixed)"""
+    """the trainer's entropy temperature, fixed (the paper's)"""
     trainer_tau: float = 0.005
     """the trainer's target smoothing coefficient"""
     trainer_freeze: bool = True
-    """freeze the trainer once its critic has converged (header, choice 5)"""
+    """freeze the trainer once its critic has converged (the paper's), by the --trainer-freeze-* test"""
     trainer_freeze_stat: Literal["relative", "reward", "excess", "loss"] = "excess"
-    """the critic loss beyond its targets' own variance over r_T's (excess), all of it over r_T's (reward), over the
-    targets' (relative), raw (loss)"""
+    """freeze on critic loss L: excess (L - var targets)/var r_T, reward L/var r_T, relative L/var targets, loss L"""
     trainer_freeze_threshold: float = 0.1
-    """freeze when the moving average (0.99) of --trainer-freeze-stat stays below this"""
+    """freeze when the moving average (0.99) of --trainer-freeze-stat stays below this (the paper's)"""
     trainer_freeze_window: int = 10_000
     """env steps the statistic must stay below the threshold (0: the first crossing freezes)"""
-    trainer_freeze_after: Optional[int] = None
-    """never freeze before this env step (default: 3/4 of --total-timesteps, 750k of the default 1M; on Hopper-v4 and
-    HalfCheetah-v4 this guard, not the test, sets the step; a resumed run keeps its freeze)"""
+    trainer_freeze_after: Annotated[Optional[int], tyro.conf.arg(
+        help_behavior_hint="(default: 3/4 of --total-timesteps)")] = None
+    """never freeze before this env step (on Hopper-v4 and HalfCheetah-v4 this, not the test, sets the step)"""
     trainer_freeze_min_updates: int = 10_000
     """never freeze before this many trainer updates"""
     trainer_release_threshold: float = 1.0
-    """a frozen trainer learns again once the statistic on D's current rewards passes this (inf: never)"""
+    """a frozen trainer learns again once the statistic on D's current rewards passes this (the paper's: inf, never)"""
     trainer_obs: Literal["state-action", "transition"] = "state-action"
-    """what the trainer observes: the student's (s, a_S) (paper), or (s, s') (needs --state-only)"""
+    """what the trainer observes: the student's (s, a_S), or its (s, s') with --state-only (the paper's)"""
 
     # Discriminator arguments
     disc_hidden_dim: int = 64
-    """width of the discriminator's two hidden layers"""
+    """width of the discriminator's two hidden layers (the paper's)"""
     disc_lr: float = 3e-5
-    """the discriminator's learning rate"""
+    """the discriminator's learning rate (the paper's)"""
     disc_batch_size: int = 32
-    """expert pairs and agent pairs per discriminator update (each)"""
+    """expert pairs and agent pairs per discriminator update, each (the paper's)"""
     disc_buffer_size: int = 16_384
-    """the discriminator learns from this many most recent agent transitions"""
+    """the discriminator learns from this many most recent agent transitions (the paper's)"""
     disc_gp: float = 1.0
     """weight of the gradient penalty (the paper's)"""
     disc_gp_center: float = 1.0
-    """the norm the gradient penalty pulls D's input gradient towards: 1 (one-centred, DAC's and the paper's) or 0
-    (zero-centred; header, choice 4)"""
+    """the norm the gradient penalty pulls D's input gradient towards: 1, DAC's one-centred form, or 0, zero-centred"""
     disc_update_every: int = 1
-    """one discriminator update every this many env steps (the paper's "1 update per round")"""
+    """one discriminator update every this many env steps (the paper's)"""
     disc_normalize: Literal["none", "demos", "pooled"] = "none"
-    """standardise the discriminator's inputs (its gradient penalty then acts in those units): not at all (the
-    paper's); by the running statistics of its training batches, expert and agent pairs pooled; by the
-    demonstrations' mean and std"""
+    """standardise D's inputs: demos, by the demos' mean and std; pooled, by running ones; none (the paper's)"""
 
     # Imitation arguments
-    expert_path: Optional[str] = None
-    """demonstrations (default: experts/<env_id>.npz)"""
+    expert_path: Annotated[Optional[str], tyro.conf.arg(help_behavior_hint="(default: experts/<env-id>.npz)")] = None
+    """the demonstrations file"""
     num_expert_trajs: int = 25
-    """use the first this many demonstration episodes"""
+    """use the first this many demonstration episodes (the paper's)"""
     state_only: bool = False
-    """imitate from states only: the demonstrations' actions are not used (none needed) and the discriminator
-    scores transitions (s, s') instead of pairs (s, a)"""
+    """imitate from states only: D scores (s, s') instead of (s, a), and no demonstration actions are needed"""
     expert_action_noise: float = 0.0
-    """std of Gaussian noise added to the expert's actions (noise-robustness experiment)"""
+    """std of Gaussian noise on the demonstrations' actions, drawn once per run from --seed, clipped to the box"""
+    expert_noise_clip: bool = True
+    """clip the noisy demonstration actions to the action box (--no-expert-noise-clip: leave them outside it)"""
     expert_state_noise: float = 0.0
-    """std of Gaussian noise added to the expert's states (noise-robustness experiment)"""
+    """std of Gaussian noise on the demonstrations' states and next states, drawn once per run from --seed"""
     student_expert_fraction: float = 0.0
-    """share of every student batch drawn from expert pairs (explicit-expert-data experiment)"""
-    trainer_expert_fraction: Optional[float] = None
-    """share of every trainer batch drawn from expert pairs (default: 0.1, 0 with --state-only; the paper's: 0)"""
+    """share of every student batch drawn from expert pairs (the paper's; 0 to 1 in its expert-data experiment)"""
+    trainer_expert_fraction: Annotated[Optional[float], tyro.conf.arg(
+        help_behavior_hint="(default: 0.1, or 0 with --state-only)")] = None
+    """share of every trainer batch drawn from expert pairs, each with a fresh a_T (the paper's: 0)"""
     reward_from: Optional[str] = None
     """covariate shift: a fresh student against this saved, frozen reward (runs/<run>/reward.pt)"""
     student_action_noise: float = 0.0
-    """std of Gaussian noise added to the actions the student executes while training"""
+    """std of Gaussian noise on the actions the student executes while training, drawn every step (not in evaluation)"""
     dynamics_freq: int = 10_000
-    """measure the learned reward every this many steps (r_S, D, RFDC, FS-RFDC, CPR; header); 0 disables"""
+    """measure the learned reward (r_S, D, RFDC, FS-RFDC, CPR) into results.json every this many steps; 0 disables"""
 
 
 # ALGO LOGIC: RILe's update and rewards (a block drail_disc.py shares), then the discriminator (gail.py's)
@@ -890,11 +895,11 @@ def load_demonstrations(path: str, env: gym.Env, num_trajs: Optional[int] = None
     With `state_only` the actions are dropped (a file without them loads). Each problem is one SystemExit line."""
     env_id, obs_dim, act_dim = env.spec.id, env.observation_space.shape[0], env.action_space.shape[0]
 
-    def fail(problem: str, fix: str = f"record them with `python expert.py --env-id {env_id}`"):
+    def fail(problem: str, fix: str = f"record them with `python expert.py --env-id {env_id}` (hours on a CPU)"):
         raise SystemExit(f"error: demonstrations '{path}' {problem}; {fix}")
 
     if not os.path.isfile(path):
-        fail("are missing", f"record them with `python expert.py --env-id {env_id}` or pass --expert-path")
+        fail(f"do not exist (experts/ has {sorted(n[:-4] for n in glob.glob('*.npz', root_dir='experts'))})")
     try:
         with np.load(path, allow_pickle=False) as f:
             data = {k: f[k] for k in f.files}
@@ -983,8 +988,8 @@ class Run:
     """The run's directory (config.json, TensorBoard, results.json with `extra`), evaluations, its `Checkpoints`."""
 
     def __init__(self, args, checkpoint: Optional[dict], stateful: dict, demos: Optional[dict], device,
-                 checkpoint_freq: int = 0):
-        self.args, self.extra, self.evals, self.start_step, self.sps = args, {}, [], 0, 0.0
+                 checkpoint_freq: int = 0, learning_starts: int = 0):
+        self.args, self.extra, self.evals, self.start_step, self.sps = args, {}, [], 0, None
         returns = demos["episode_returns"] if demos else np.array([np.nan])  # the normalized score's 1 (random's: 0)
         self.expert_return = float(returns.mean()) if np.isfinite(returns.mean()) else None
         self.random_return = demos["metadata"]["random_return"] if demos else None
@@ -996,7 +1001,7 @@ class Run:
         self.writer, self.machine = tensorboard(args, self.name, self.dir), machine(device)
         self.start_time = time.time()  # time.time() - start_time: the run's wall time (a resumed run's included)
         self.checkpoints = Checkpoints(self, stateful, checkpoint_freq, checkpoint, device)
-        self.tick, self.shown, self.tty = (self.start_step, time.perf_counter()), 0.0, sys.stdout.isatty()
+        self.shown, self.tty, self.marks, self.learning_starts = 0.0, sys.stdout.isatty(), [], learning_starts
         expert = f"{len(returns)} demonstration episodes, return {returns.mean():.1f} | " if demos else ""
         print(f"{'resumed ' * bool(checkpoint)}{self.dir} at step {self.start_step} of {args.total_timesteps} | "
               f"{args.env_id} | {expert}{device}, threads {torch.get_num_threads()}", flush=True)
@@ -1008,13 +1013,13 @@ class Run:
 
     def end_step(self, step: int, act) -> None:
         """After env step `step` (counted from 1): an evaluation every --eval-freq steps, a checkpoint when due."""
-        if step % self.args.eval_freq == 0 or step == self.args.total_timesteps:
-            self.sps = (step - self.tick[0]) / (time.perf_counter() - self.tick[1])  # since the last evaluation
-            self.evaluate(step, act)
-            self.tick = (step, time.perf_counter())
-        elif self.tty and time.perf_counter() - self.shown > 10:
-            self.sps = (step - self.tick[0]) / (time.perf_counter() - self.tick[1])
-            self.show(step)
+        now, evaluation = time.perf_counter(), step % self.args.eval_freq == 0 or step == self.args.total_timesteps
+        if step > self.learning_starts and (not self.marks or now - self.marks[-1][1] >= 10):
+            self.marks = self.marks[-60:] + [(step, now)]  # every 10 s of learning: SPS over this process's last 10 min
+        if evaluation or (self.tty and now - self.shown > 10):  # on a terminal, progress every 10 s
+            first_step, first = self.marks[0] if self.marks else (step, now)
+            self.sps = (step - first_step) / (now - first) if now - first >= 60 else None  # None: not measured yet
+            self.evaluate(step, act) if evaluation else self.show(step)
         self.checkpoints.end_step(step)
 
     def evaluate(self, step: int, act) -> None:
@@ -1028,10 +1033,10 @@ class Run:
         self.show(step)
 
     def show(self, step: int) -> None:
-        """One line: steps, SPS, minutes so far and left, the latest evaluation (on a terminal, rewritten in place)."""
+        """One line: steps, minutes so far, SPS and minutes left, the latest evaluation (on a terminal, in place)."""
         total, last = self.args.total_timesteps, self.evals[-1] if self.evals else None
-        line = (f"step {step}/{total} | {self.sps:.0f} SPS | {(time.time() - self.start_time) / 60:.0f} min, "
-                f"{(total - step) / max(self.sps, 1e-6) / 60:.0f} min left")
+        rate = f"{self.sps:.0f} SPS, {(total - step) / self.sps / 60:.0f} min left" if self.sps else "SPS: measuring"
+        line = f"step {step}/{total} | {(time.time() - self.start_time) / 60:.0f} min | {rate}"
         if last:
             score = f" = {last['normalized']:.2f} normalized" if last["normalized"] is not None else ""
             line += f" | eval at {last['step']}: return {last['mean']:.1f} +- {last['std']:.1f}{score}"
@@ -1117,8 +1122,7 @@ def tensorboard(args, name: str, run_dir: str):
                    config=vars(args), name=name, id=name, resume="allow", save_code=True)
     from torch.utils.tensorboard import SummaryWriter
     writer = SummaryWriter(run_dir)
-    table = "\n".join(f"|{k}|{v}|" for k, v in asdict(args).items())
-    writer.add_text("hyperparameters", "|param|value|\n|-|-|\n" + table)
+    writer.add_text("hyperparameters", "|param|value|\n|-|-|" + "".join(f"\n|{k}|{v}|" for k, v in vars(args).items()))
     return writer
 
 
@@ -1171,7 +1175,8 @@ if __name__ == "__main__":
     low, high = env.action_space.low, env.action_space.high
     demos = load_demonstrations(args.expert_path or f"experts/{args.env_id}.npz", env, args.num_expert_trajs,
                                 args.state_only)
-    expert = expert_tensors(demos, args.seed, device, args.expert_state_noise, args.expert_action_noise, low, high)
+    clip = (low, high) if args.expert_noise_clip else (-np.inf, np.inf)  # where noisy expert actions may lie
+    expert = expert_tensors(demos, args.seed, device, args.expert_state_noise, args.expert_action_noise, *clip)
     absorbing = args.termination_remedy == "absorbing"
     if absorbing:
         expert = absorbing_expert(expert)
@@ -1192,7 +1197,8 @@ if __name__ == "__main__":
     measures = {"interval": None, "demos": None, "history": []}  # reward_measures' memory
     stateful = {"student": student, "disc": disc, "disc_optimizer": disc.optimizer, "replay_buffer": rb, "rile": state,
                 "measures": measures} | ({"trainer": trainer} if trainer is not None else {})
-    run = Run(args, checkpoint, stateful, demos, device, checkpoint_freq=args.checkpoint_freq)
+    run = Run(args, checkpoint, stateful, demos, device, checkpoint_freq=args.checkpoint_freq,
+              learning_starts=args.learning_starts)
     run.extra = {"trainer_frozen_at": state["frozen_at"], "trainer_released_at": state["released_at"],
                  "reward_measures": measures["history"]}
 

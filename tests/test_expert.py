@@ -344,9 +344,21 @@ def test_full_episodes_only_discards_falls_and_records_every_try():
 # ---------------------------------------------------------------- errors users see
 
 
-def test_missing_demonstration_file(tmp_path):
-    with pytest.raises(SystemExit, match="are missing; record them with"):
-        expert.load_demonstrations(str(tmp_path / "nope.npz"), expert.make_env("InvertedPendulum-v4", 0))
+def test_missing_demonstration_file(tmp_path, monkeypatch):
+    """A file that does not exist, given or the default for an env with no shipped demonstrations (a v5 id, as
+    gymnasium's warning invites): the line says so, names the envs that have them in experts/, and what recording costs."""
+    env = expert.make_env("Walker2d-v5", 0)
+    monkeypatch.chdir(tmp_path)  # no experts/ here
+    with pytest.raises(SystemExit) as given:
+        expert.load_demonstrations("nope.npz", env)
+    monkeypatch.chdir(ROOT)  # where experts/ ships
+    with pytest.raises(SystemExit) as default:
+        expert.load_demonstrations("experts/Walker2d-v5.npz", env)
+    assert str(given.value).startswith("error: demonstrations 'nope.npz' do not exist (experts/ has []); record them")
+    assert str(default.value) == ("error: demonstrations 'experts/Walker2d-v5.npz' do not exist (experts/ has "
+                                  "['HalfCheetah-v4', 'Hopper-v4', 'InvertedPendulum-v4', 'Pendulum-v1', 'UMaze-v0', "
+                                  "'Walker2d-v4']); record them with `python expert.py --env-id Walker2d-v5` (hours on a "
+                                  "CPU)")
 
 
 def test_corrupt_demonstration_file(tmp_path, demo_file):

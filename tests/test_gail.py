@@ -79,7 +79,8 @@ def test_end_to_end(run, tmp_path):
     out = run("gail.py", "--env-id", "InvertedPendulum-v4", "--total-timesteps", "500", "--learning-starts", "200",
               "--eval-freq", "250", "--eval-episodes", "2", "--hidden-dim", "32", "--batch-size", "32",
               "--num-expert-trajs", "2", "--expert-path", str(ROOT / "experts/InvertedPendulum-v4.npz"),
-              "--reward-form", "logit", "--expert-state-noise", "0.1", "--run-name", "g", "--dynamics-freq", "250",
+              "--reward-form", "logit", "--expert-state-noise", "0.1", "--expert-action-noise", "0.5",
+              "--no-expert-noise-clip", "--run-name", "g", "--dynamics-freq", "250",
               "--termination-remedy", "absorbing").stdout  # DAC's combination: logit reward, absorbing states
     assert "GAIL reward: logit" in out
     results = json.loads((tmp_path / "runs/g/results.json").read_text())

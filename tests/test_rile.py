@@ -2,6 +2,8 @@
 fractions, noise, the reward-dynamics metrics, the discriminator loss, the saved reward, end to end."""
 
 import json
+import re
+from dataclasses import replace
 from types import SimpleNamespace
 
 import numpy as np
@@ -9,6 +11,8 @@ import pytest
 import torch
 import torch.nn as nn
 
+import airl
+import gail
 import rile
 from benchmarks import reward_dynamics
 from conftest import ROOT
@@ -332,19 +336,78 @@ def test_the_trainer_sees_a_tenth_of_expert_pairs_unless_it_cannot():
         rile.check_rile_args(rile.Args(state_only=True, trainer_expert_fraction=0.1))
 
 
-def test_noise_options_change_what_they_say_and_nothing_else():
-    demos = {"observations": np.zeros((50, OBS), np.float32), "next_observations": np.ones((50, OBS), np.float32),
-             "actions": np.full((50, ACT), 0.9, np.float32), "terminations": np.zeros(50, bool)}
-    low, high = -np.ones(ACT), np.ones(ACT)
-    clean = rile.expert_tensors(demos, 1, "cpu", action_low=low, action_high=high)
-    acted = rile.expert_tensors(demos, 1, "cpu", action_noise=0.5, action_low=low, action_high=high)
-    stated = rile.expert_tensors(demos, 1, "cpu", state_noise=0.2, action_low=low, action_high=high)
-    assert torch.equal(acted["obs"], clean["obs"]) and torch.equal(acted["next_obs"], clean["next_obs"])
-    assert not torch.equal(acted["actions"], clean["actions"]) and acted["actions"].abs().max() <= 1.0
-    assert torch.equal(stated["actions"], clean["actions"])
-    assert not torch.equal(stated["obs"], clean["obs"]) and not torch.equal(stated["next_obs"], clean["next_obs"])
-    assert stated["obs"].std().item() == pytest.approx(0.2, rel=0.25)
-    assert torch.equal(stated["terminations"], clean["terminations"])
+def test_demonstration_noise_is_one_noisy_demonstrator_per_run():
+    """--expert-action-noise and --expert-state-noise: drawn once per run from --seed (the same seed gives the same noisy
+    demonstrations, another seed others), zero-mean with the given std, noisy actions clipped to the action box, states
+    noised on observations and next observations (independently); nothing else changes."""
+    n, low, high = 20_000, -np.ones(ACT), np.ones(ACT)
+    demos = {"observations": np.zeros((n, OBS), np.float32), "next_observations": np.ones((n, OBS), np.float32),
+             "actions": np.zeros((n, ACT), np.float32), "terminations": np.arange(n) % 100 == 99}
+    tensors = lambda seed, **noise: rile.expert_tensors(demos, seed, "cpu", action_low=low, action_high=high, **noise)
+    clean, acted, stated = tensors(1), tensors(1, action_noise=0.3), tensors(1, state_noise=0.5)
+    for noisy, again in ((acted, tensors(1, action_noise=0.3)), (stated, tensors(1, state_noise=0.5))):
+        assert all(torch.equal(noisy[k], again[k]) for k in noisy)  # fixed by the seed
+    assert not torch.equal(acted["actions"], tensors(2, action_noise=0.3)["actions"])
+    assert not torch.equal(stated["obs"], tensors(2, state_noise=0.5)["obs"])
+    for diff, std in ((acted["actions"] - clean["actions"], 0.3), (stated["obs"] - clean["obs"], 0.5),
+                      (stated["next_obs"] - clean["next_obs"], 0.5)):
+        assert abs(diff.mean().item()) < 0.01 and diff.std().item() == pytest.approx(std, rel=0.02)
+    assert not torch.equal(stated["obs"] - clean["obs"], stated["next_obs"] - clean["next_obs"])
+    for same in ("obs", "next_obs", "terminations"):
+        assert torch.equal(acted[same], clean[same])
+    assert torch.equal(stated["actions"], clean["actions"]) and torch.equal(stated["terminations"], clean["terminations"])
+    heavy = rile.expert_tensors(demos | {"actions": np.full((n, ACT), 0.9, np.float32)}, 1, "cpu", action_noise=1.25,
+                                action_low=low, action_high=high)["actions"]
+    assert heavy.abs().max() <= 1.0  # clipped to the box: P(0.9 + e > 1) = 0.47, P(0.9 + e < -1) = 0.06
+    assert (heavy == 1.0).float().mean().item() == pytest.approx(0.47, abs=0.02)
+    assert (heavy == -1.0).float().mean().item() == pytest.approx(0.064, abs=0.01)
+    unclipped = rile.expert_tensors(demos | {"actions": np.full((n, ACT), 0.9, np.float32)}, 1, "cpu", action_noise=1.25,
+                                    action_low=-np.inf, action_high=np.inf)["actions"]  # --no-expert-noise-clip
+    assert (unclipped.clamp(-1, 1) == heavy).all() and (unclipped > 1).float().mean().item() == pytest.approx(0.47, abs=0.02)
+
+
+def test_every_consumer_sees_the_noisy_pairs(monkeypatch):
+    """The noisy tensors are the ones used: each script's main makes them once and passes them on (and nothing else of
+    the demonstrations but their returns); D's expert batches in rile.py, gail.py and airl.py and the trainer's expert
+    share in rile.py are rows of them."""
+    for script in ("rile.py", "gail.py", "airl.py"):
+        main = (ROOT / script).read_text().split('if __name__ == "__main__":')[1]
+        made = "expert = expert_tensors(demos, args.seed, device, args.expert_state_noise, args.expert_action_noise, *"
+        assert made in main, script
+        rest = [line.strip() for line in main.split(made)[1].splitlines()[1:] if re.search(r'(?<!")\bdemos\b', line)]
+        assert all(line.startswith("run = Run(args, checkpoint, stateful, demos,") for line in rest), (script, rest)
+    demos = {"observations": 100 + np.arange(40.0)[:, None].repeat(OBS, 1), "actions": np.full((40, ACT), 0.5),
+             "next_observations": np.full((40, OBS), 200.0), "terminations": np.zeros(40)}
+    noisy = rile.expert_tensors(demos, 1, "cpu", 0.1, 0.2, -np.ones(ACT), np.ones(ACT))
+    pairs = torch.cat([noisy["obs"], noisy["actions"]], -1)
+    is_noisy_pair = lambda x: (x[:, None, :] == pairs[None]).all(-1).any(1).all().item()
+
+    def record(disc, seen):
+        update = disc.update
+        monkeypatch.setattr(disc, "update", lambda expert_x, *rest: seen.append(expert_x) or update(expert_x, *rest))
+
+    args = tiny_args(trainer_expert_fraction=0.5)
+    student, trainer, disc, rb, _, state = learners(args)
+    seen, disc_seen = {}, []
+    monkeypatch.setattr(trainer, "update", recorder(seen, "trainer"))
+    record(disc, disc_seen)
+    rile.rile_update(student, trainer, disc, rb, noisy, args, state, 1)
+    assert is_noisy_pair(disc_seen[0]) and is_noisy_pair(seen["trainer"][0][: args.trainer_batch_size // 2])
+
+    args = gail.Args(hidden_dim=16, batch_size=8, disc_batch_size=4, disc_hidden_dim=8)
+    agent, disc = gail.SAC(OBS, ACT, -np.ones(ACT), np.ones(ACT), args, "cpu"), gail.Discriminator(OBS + ACT, 8, 1e-3, 1)
+    monkeypatch.setattr(agent, "update", lambda *batch, prefix: {})
+    record(disc, disc_seen)
+    gail.gail_update(agent, disc, rb, noisy, args)
+    assert is_noisy_pair(disc_seen[1])
+
+    args = airl.Args(hidden_dim=16, batch_size=8, disc_batch_size=4, disc_hidden_dim=8)
+    agent = airl.SAC(OBS, ACT, -np.ones(ACT), np.ones(ACT), args, "cpu")
+    disc = airl.AIRLDiscriminator(OBS, ACT, 8, args.gamma, False, args.disc_lr, args.disc_gp)
+    monkeypatch.setattr(agent, "update", lambda *batch, prefix: {})
+    record(disc, disc_seen)
+    airl.airl_update(agent, disc, rb, noisy, args)
+    assert is_noisy_pair(torch.cat(disc_seen[2][:2], -1))
 
 
 # ---------------------------------------------------------------- reward dynamics
@@ -587,7 +650,7 @@ def test_a_run_says_what_it_runs_then_shows_progress(tmp_path, monkeypatch, caps
     run.end_step(1, act)  # nothing shown yet: a progress line at once
     run.end_step(2, act)  # within 10 s of it: nothing
     progress = capsys.readouterr().out
-    assert progress.startswith("\rstep 1/100 | ") and progress.endswith("min left\033[K") and "\n" not in progress
+    assert progress.startswith("\rstep 1/100 | ") and progress.endswith("SPS: measuring\033[K") and "\n" not in progress
     run.end_step(50, act)  # an evaluation: its line stays
     evaluation = capsys.readouterr().out
     assert evaluation.startswith("\rstep 50/100 | ") and "| eval at 50: return " in evaluation and evaluation.endswith("\n")
@@ -598,6 +661,48 @@ def test_a_run_says_what_it_runs_then_shows_progress(tmp_path, monkeypatch, caps
     line = capsys.readouterr().out
     assert line.startswith("step 100/100 | ") and "eval at 100: return " in line and " normalized" in line
     run.writer.close()
+
+
+def test_time_left_comes_from_recent_learning_steps_not_the_warm_up_nor_before_a_resume(tmp_path, monkeypatch, capsys):
+    """A fake clock: 5,000 random-action steps at 1,000 a second, then learning at 40 a second with a 15 s evaluation
+    every 10k steps, then 60 a second from 75k (as when RILe's trainer freezes). SPS and time left appear after a
+    minute of learning, from learning steps only; the time left shown from then to mid-run is within 25 % of the time
+    the run then took; the rate follows the last 10 minutes; a resumed run measures afresh."""
+    monkeypatch.chdir(tmp_path)
+    clock = [0.0]
+    monkeypatch.setattr(rile.time, "perf_counter", lambda: clock[0])
+    args = tiny_args(env_id="InvertedPendulum-v4", total_timesteps=100_000, eval_freq=10_000, eval_episodes=1,
+                     learning_starts=5_000, run_name="eta")
+    run, act = rile.Run(args, None, {}, None, "cpu", learning_starts=5_000), lambda obs, deterministic: np.zeros(1)
+    run.tty, _ = True, capsys.readouterr()  # the start line
+
+    def seconds(step):  # the step's duration, and an evaluation's after the step that makes one
+        return (0.001 if step <= 5_000 else 1 / 40 if step <= 75_000 else 1 / 60) + 15 * (step % 10_000 == 0)
+
+    finish, shown = sum(seconds(step) for step in range(1, 100_001)), {}
+    for step in range(1, 100_001):
+        clock[0] += seconds(step) - 15 * (step % 10_000 == 0)
+        run.end_step(step, act)
+        clock[0] += 15 * (step % 10_000 == 0)
+        if out := capsys.readouterr().out:
+            shown[step] = (clock[0], out)
+    assert all("SPS: measuring" in out for t, out in shown.values() if t < 5 + 60)  # warm-up, first minute
+    timed = {step: (t, out) for step, (t, out) in shown.items() if "min left" in out}
+    sps_and_left = lambda out: [float(x) for x in out.split(" | ")[2].replace(" SPS,", "").split()[:2]]
+    first = min(timed)
+    assert 5_000 + 60 * 40 <= first <= 5_000 + 71 * 40 and sps_and_left(timed[first][1])[0] == 40  # no warm-up
+    checked = [step for step in timed if step <= 50_000]
+    for step in checked[:: len(checked) // 10]:
+        t, out = timed[step]
+        truth = finish - t
+        assert abs(sps_and_left(out)[1] * 60 - truth) <= 0.25 * truth, (step, sps_and_left(out), truth)
+    assert 48 <= sps_and_left(shown[100_000][1])[0] < 60  # the last 10 min (since learning began: 41 a second)
+    run.writer.close()
+    resumed = rile.Run(replace(args, run_name="eta2"), None, {}, None, "cpu", learning_starts=5_000)
+    resumed.start_step, resumed.tty, _ = 40_000, True, capsys.readouterr()  # as a checkpoint sets it; measured anew
+    resumed.end_step(40_001, act)
+    assert "SPS: measuring" in capsys.readouterr().out and resumed.marks == [(40_001, clock[0])]
+    resumed.writer.close()
 
 
 def test_absorbing_states_end_to_end(run, tmp_path):
