@@ -2,7 +2,8 @@
 
     python sweep.py --scripts rile.py gail.py --env-ids Hopper-v4 --seeds 1 2 3 --total-timesteps 200000
     python sweep.py --status            # which jobs are done, running, interrupted or waiting
-    python sweep.py --report            # tables, curves: the defaults in the README, every tag in docs/results.md
+    python sweep.py --report            # the defaults in the README, every tag in docs/results.md, the paper's
+                                        # experiments in docs/experiments.md (tables and figures)
     python sweep.py ... --launcher slurm --partition gpu --time 720 --cpus 4 --gpus 1
 
 Each job (script x env x seed) runs as its own process, `python <script> --env-id E --seed S
@@ -394,7 +395,7 @@ def env_table(env_id: str, algos: dict, names: Optional[dict] = None) -> str:
 VERSION_KEYS = ("torch", "numpy", "gymnasium", "mujoco", "cpu", "cpu_capability")
 
 
-def version_note(algos: dict, names: Optional[dict] = None) -> str:
+def version_note(algos: dict) -> str:
     """A line saying which versions and CPUs the rows of one table came from, when they are not all the same
     (older results files record only torch's version)."""
     seen = {}
@@ -402,7 +403,7 @@ def version_note(algos: dict, names: Optional[dict] = None) -> str:
         for r in runs:
             machine = r.get("machine") or {}
             key = ", ".join(f"{k} {machine[k]}" for k in VERSION_KEYS if machine.get(k)) or "no versions recorded"
-            seen.setdefault(key, set()).add((names or {}).get(algo, algo))
+            seen.setdefault(key, set()).add(algo)
     if len(seen) < 2:
         return ""
     return "Versions differ between these rows: " + "; ".join(f"{key} ({', '.join(sorted(a))})"
@@ -466,6 +467,220 @@ def trainer_gap(rows: dict) -> str:
             f"{hi:+.3f}]), final {np.mean(final[0]) - np.mean(final[1]):+.3f}, normalized.")
 
 
+# ---------------------------------------------------------------- the paper's experiments (docs/experiments.md)
+
+EXPERIMENTS_PAGE = "docs/experiments.md"
+EXPERIMENT_RUN = "--total-timesteps 200000 --threads 1 --checkpoint-freq 10000"  # every experiment's runs: 200k steps
+# The methods each experiment compares, by the results-file algo of their defaults: (column, script, tag, flags).
+METHODS = {
+    "rile-paperD": ("rile.py", "rile.py", "paperD", ""),
+    "rile-paperD-control": ("the control", "rile.py", "paperD-control", "--student-reward discriminator"),
+    "gail-paperD-autotune": ("gail.py", "gail.py", "paperD-autotune", ""),
+    "airl": ("airl.py", "airl.py", "", ""),
+}
+# Noisy demonstrations: condition -> (the tag it adds to each method's, its flags); clean: the default runs.
+NOISE = {"clean": ("", ""), "actions 0.5": ("act0.5", "--expert-action-noise 0.5"),
+         "actions 1.25": ("act1.25", "--expert-action-noise 1.25"),
+         "states 0.5": ("state0.5", "--expert-state-noise 0.5")}
+NOISE_ENVS = {  # env -> (methods, conditions)
+    "Hopper-v4": (["rile-paperD", "rile-paperD-control", "gail-paperD-autotune", "airl"], list(NOISE)),
+    "HalfCheetah-v4": (["rile-paperD", "rile-paperD-control", "gail-paperD-autotune"], ["clean", "actions 1.25",
+                                                                                      "states 0.5"]),
+}
+# The paper's noise table (Humanoid-v2, returns), at the same noise relative to the action box: its action noise 0.2
+# and 0.5 on [-0.4, 0.4] are 0.5 and 1.25 on our [-1, 1]; state noise is absolute (its 0.5).
+PAPER_NOISE = {"clean": {"rile": 5928, "gail": 5709, "airl": 5623},
+               "actions 0.5": {"rile": 5280, "gail": 5275, "airl": 4869},
+               "actions 1.25": {"rile": 5154, "gail": 902, "airl": 4589},
+               "states 0.5": {"rile": 5205, "gail": 917, "airl": 4780}}
+
+
+def condition_algo(method: str, tag: str) -> str:
+    """The results-file algo of a method under an experiment's condition: its defaults' algo with the tag added."""
+    return f"{method}-{tag}" if tag else method
+
+
+def sweep_command(method: str, env_id: str, tag: str, flags: str, seeds: str = "1 2") -> str:
+    _, script, base, method_flags = METHODS[method]
+    tag = "-".join(t for t in (base, tag) if t)
+    return " ".join(x for x in (f"python sweep.py --scripts {script} --env-ids {env_id} --seeds {seeds}",
+                                EXPERIMENT_RUN, f"--tag {tag}" if tag else "", method_flags, flags) if x)
+
+
+def runs_of(algos: dict, algo: str) -> list:
+    """The 200k runs of an algo, by seed (an algo run at several lengths has a row per length)."""
+    runs = algos.get(algo) or algos.get(f"{algo} (200k)") or []
+    return sorted((r for r in runs if r["evals"][-1]["step"] == 200_000), key=lambda r: r["seed"])
+
+
+def last_quarter_d(r: dict) -> str:
+    """D on the demonstrations / on the student, mean over the last quarter's reward measures ('-' if not measured)."""
+    end = r["evals"][-1]["step"]
+    rows = [m for m in r.get("reward_measures") or [] if m["step"] > 0.75 * end and m.get("d_demos") is not None]
+    mean = lambda key: np.mean([m[key] for m in rows])
+    return f"{mean('d_demos'):.2f} / {mean('d_student'):.2f}" if rows else "-"
+
+
+def noise_section(grouped: dict, results_dir: str, page_dir: str) -> str:
+    parts = []
+    for env_id, (methods, conditions) in NOISE_ENVS.items():
+        algos = grouped.get(env_id, {})
+        scores = {(m, c): [last_quarter(r, normalize=True) for r in runs_of(algos, condition_algo(m, NOISE[c][0]))]
+                  for m in methods for c in conditions}
+        lines = ["| demonstrations | " + " | ".join(METHODS[m][0] for m in methods) + " |",
+                 "|---" * (len(methods) + 1) + "|"]
+        for c in conditions:
+            cells = []
+            for m in methods:
+                x, clean = scores[m, c], scores[m, "clean"]
+                paper = PAPER_NOISE[c].get(m.split("-")[0]) if "control" not in m else None
+                of_clean = paper and f"paper {paper / PAPER_NOISE['clean'][m.split('-')[0]]:.2f}"
+                if not x:
+                    cells.append("not yet run" + (f" ({of_clean})" if c != "clean" and of_clean else ""))
+                    continue
+                cell = f"{', '.join(f'{v:.2f}' for v in x)}: **{np.mean(x):.2f}**"
+                if c != "clean" and clean:
+                    cell += f" = {np.mean(x) / np.mean(clean):.2f} of clean" + (f" ({of_clean})" if of_clean else "")
+                cells.append(cell)
+            lines.append(f"| {c} | " + " | ".join(cells) + " |")
+        gap = ["| demonstrations | seeds | rile.py minus the control: last quarter [95% interval] | "
+               + " | ".join(f"D on demonstrations / on the student, {METHODS[m][0]}" for m in methods[:3]) + " |",
+               "|---" * 6 + "|"]
+        for c in conditions:
+            a, b = scores["rile-paperD", c], scores["rile-paperD-control", c]
+            if a and b:
+                lo, hi = difference_ci(a, b)
+                d = [", ".join(last_quarter_d(r) for r in runs_of(algos, condition_algo(m, NOISE[c][0])))
+                     for m in methods[:3]]
+                gap.append(f"| {c} | {len(a)} and {len(b)} | {np.mean(a) - np.mean(b):+.3f} [{lo:+.3f}, {hi:+.3f}] | "
+                           + " | ".join(x or "-" for x in d) + " |")
+        png = os.path.join(results_dir, f"noise-{env_id}.png")
+        if any(scores[m, c] for m in methods for c in conditions if c != "clean"):
+            plot_conditions(env_id, methods, conditions, scores, png)
+        elif os.path.exists(png):
+            os.remove(png)
+        commands = [f"{sweep_command(m, env_id, *NOISE[c])}  # {c}, {METHODS[m][0]}"
+                    for c in conditions if c != "clean" for m in methods]
+        parts.append(f"### {env_id}\n\n" + "\n".join(lines) + "\n\n" + "\n".join(gap) + "\n\n"
+                     + (f"![{env_id}: clean against noisy demonstrations]({os.path.relpath(png, page_dir)})\n\n"
+                        if os.path.exists(png) else "")
+                     + "The commands (the clean row is the default runs of the README's tables):\n\n```bash\n"
+                     + "\n".join(commands) + "\n```\n")
+    return "\n".join(parts)
+
+
+# The trainer's design, on Hopper-v4 seed 1: variant -> (tag added to rile.py's, flags); the first row is the default.
+TRAINER_REWARDS = {"exp-difference (default)": ("", "")} | {
+    name: (f"tr-{name}", f"--trainer-reward {name}")
+    for name in ("difference", "multiplication", "naive", "exp-naive", "sigmoid")}
+EXPERT_DATA = {"none in the student's batches, 0.1 of the trainer's (defaults)": ("", "")} | {
+    f"{f} of the student's batches": (f"sef{f}", f"--student-expert-fraction {f}") for f in (0.25, 0.5, 1.0)} | {
+    f"{f} of the trainer's batches": (f"tef{f}", f"--trainer-expert-fraction {f}") for f in (0.0, 0.5, 1.0)}
+
+
+def variants_table(algos: dict, env_id: str, variants: dict, seeds: str = "1") -> str:
+    """One row per variant of rile.py's defaults: its seeds' final and last-quarter scores, or 'not yet run'."""
+    lines = ["| variant | final, normalized | last quarter | first evaluation at 0.8 or above | command |",
+             "|---|---|---|---|---|"]
+    for name, (tag, flags) in variants.items():
+        runs = [r for r in runs_of(algos, condition_algo("rile-paperD", tag)) if str(r["seed"]) in seeds.split()]
+        command = f"`{sweep_command('rile-paperD', env_id, tag, flags, seeds)}`"
+        if not runs:
+            lines.append(f"| {name} | not yet run | | | {command} |")
+            continue
+        final = [normalized_score(r["final_return"], random_return_of(r), r.get("expert_return")) for r in runs]
+        first = [next((e["step"] for e in r["evals"]
+                       if (normalized_score(e["mean"], random_return_of(r), r.get("expert_return")) or 0) >= 0.8), None)
+                 for r in runs]
+        lines.append(f"| {name} | {', '.join(f'{x:.2f}' for x in final)} | "
+                     f"{', '.join(f'{last_quarter(r, normalize=True):.2f}' for r in runs)} | "
+                     f"{', '.join(f'{x // 1000}k' if x else 'never' for x in first)} | {command} |")
+    return "\n".join(lines)
+
+
+EXPERIMENTS_HEAD = """# The RILe paper's experiments
+
+Generated by `python sweep.py --report` from the results files in `benchmarks/results/`; do not edit by hand. Each
+experiment runs rile.py beside the control that rewards the same student with v(D) = 2D - 1 directly, with no trainer
+(`--student-reward discriminator`), and beside gail.py and airl.py where the paper has them, for 200k env steps.
+Scores are normalized (uniform random actions 0, the demonstrations' mean return 1). "Last quarter" is the mean of a
+run's evaluations after 150k steps (its last five). Each results file holds the exact command that made it; the
+commands below are the sweeps that make or continue them (`python sweep.py --status ...` shows what is done).
+"""
+
+NOISE_HEAD = """## Noisy demonstrations
+
+The paper adds zero-mean Gaussian noise to the expert's actions or states (Humanoid-v2, one seed) and reports RILe
+keeping 0.87-0.89 of its clean return, GAIL 0.16 at the heavy level and AIRL 0.82-0.87. Here the noise is drawn once
+per run from `--seed` (one fixed noisy demonstrator, not fresh noise per batch), on the actions with
+`--expert-action-noise` (clipped to the action box) or on the observations and next observations with
+`--expert-state-noise`, and every consumer of the demonstrations sees the noisy pairs. The paper's action noise 0.2
+and 0.5 on Humanoid's [-0.4, 0.4] box are 0.5 and 1.25 on the [-1, 1] boxes here; state noise has no box and keeps
+the paper's 0.5. The clean row is the default runs (four seeds; airl.py two). Each cell: the last-quarter score of
+each seed, their mean in bold, that mean as a fraction of the method's clean mean, and the paper's Humanoid fraction
+at the same level (of returns; Humanoid's random-action return is small beside its expert's). The second table:
+what the trainer adds under each condition, and whether D saturates (D near 1 on the demonstrations and near 0 on the
+student leaves little to learn from), as the mean over the last quarter of the reward measures taken every 10k steps.
+Other levels, or iqlearn.py and bc.py (which take no noise flags), are not run: the same sweep with another
+`--expert-action-noise`/`--expert-state-noise` and `--tag` adds them.
+"""
+
+SHIFT_HEAD = """## Covariate shift: a frozen reward, a fresh student with noisy actions
+
+The paper trains in the clean env, freezes the learned reward, then trains a fresh student against it with Gaussian
+noise on the actions it executes (Humanoid-v2: RILe keeps 0.88 of its no-noise score at both levels, AIRL 0.89 and
+0.88). rile.py does it with `--reward-from runs/<run>/reward.pt --student-action-noise <std>` (the reward file a
+finished run saves; a control run's file freezes its D): not yet run.
+
+    python rile.py --env-id Hopper-v4 --total-timesteps 200000 --run-name source
+    python rile.py --env-id Hopper-v4 --total-timesteps 200000 --student-action-noise 1.25 \\
+        --reward-from runs/source/reward.pt
+"""
+
+TRAINER_HEAD = """## The six trainer rewards
+
+The paper's ablation of the trainer's reward (its figure "Trainer-Discriminator Relation"); `--trainer-reward`,
+Hopper-v4 seed 1. The first evaluation at or above 0.8 is the paper's convergence measure.
+"""
+
+EXPERT_DATA_HEAD = """## Expert data in the buffers
+
+The paper replaces a share of the student's or the trainer's batches with expert pairs (its figure "Explicit Usage of
+Expert Data"): `--student-expert-fraction`, `--trainer-expert-fraction`; Hopper-v4 seed 1.
+"""
+
+
+def experiments_text(grouped: dict, results_dir: str, page_dir: str) -> str:
+    hopper = grouped.get("Hopper-v4", {})
+    return (EXPERIMENTS_HEAD + "\n" + NOISE_HEAD + "\n" + noise_section(grouped, results_dir, page_dir) + "\n"
+            + SHIFT_HEAD + "\n" + TRAINER_HEAD + "\n" + variants_table(hopper, "Hopper-v4", TRAINER_REWARDS) + "\n\n"
+            + EXPERT_DATA_HEAD + "\n" + variants_table(hopper, "Hopper-v4", EXPERT_DATA) + "\n")
+
+
+def plot_conditions(env_id: str, methods: list, conditions: list, scores: dict, path: str) -> None:
+    """Bars: each method's mean last-quarter score per condition, its seeds as dots."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(8, 3.5))
+    width = 0.8 / len(conditions)
+    for j, c in enumerate(conditions):
+        offset = (j - (len(conditions) - 1) / 2) * width
+        xs = [(i + offset, scores[m, c]) for i, m in enumerate(methods) if scores[m, c]]
+        ax.bar([x for x, _ in xs], [np.mean(y) for _, y in xs], width, color=plt.cm.tab10(j), label=c)
+        for x, y in xs:
+            ax.plot([x] * len(y), y, "k.", ms=4)
+    ax.set_xticks(range(len(methods)), [METHODS[m][0] for m in methods])
+    ax.axhline(1.0, color="k", ls="--", lw=1)
+    ax.set(title=f"{env_id}: noisy demonstrations, 200k steps", ylabel="last quarter, normalized")
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1))
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
 def all_tags_text(grouped: dict, bad: list, results_dir: str, page_dir: str) -> str:
     """Every tag of every env, today's defaults named as well; image links relative to page_dir."""
     parts = []
@@ -490,13 +705,13 @@ def defaults_text(grouped: dict, results_dir: str, page_dir: str) -> str:
             continue
         names = {algo: default_name(algo) for algo in rows}
         png = os.path.relpath(os.path.join(results_dir, f"{env_id}.png"), page_dir)
-        note = version_note(rows, names)
         lines = [ENV_NOTES.get(env_id, ""), trainer_gap(rows),
                  SELECTION_NOTE if any(algo in rows for algo in SELECTED) else "",
-                 f"Learning curves: [{env_id}.png]({png}).", f"{note}." if note else ""]
+                 f"Learning curves: [{env_id}.png]({png})."]
         parts.append(f"### {env_id}\n\n{env_table(env_id, rows, names)}\n\n" + "".join(f"{x}\n" for x in lines if x))
     return (("\n".join(parts) or "No results with today's defaults yet.\n") + "\n" + COLUMNS
-            + f"\nEvery other configuration that was run, and these under their tags: [{DOCS_PAGE}]({DOCS_PAGE}).\n")
+            + "\nEvery other configuration that was run, and the versions and CPUs behind each row: "
+            f"[{DOCS_PAGE}]({DOCS_PAGE}).\n")
 
 
 DOCS_HEAD = ("# Results of every configuration run\n\n"
@@ -530,6 +745,9 @@ def report(results_dir: str = RESULTS_DIR, readme: Optional[str] = os.path.join(
         os.makedirs(os.path.dirname(docs_page), exist_ok=True)
         with open(docs_page, "w") as f:
             f.write(DOCS_HEAD + all_tags_text(grouped, bad, results_dir, os.path.dirname(docs_page)))
+        experiments_page = os.path.join(readme_dir, EXPERIMENTS_PAGE)
+        with open(experiments_page, "w") as f:
+            f.write(experiments_text(grouped, results_dir, os.path.dirname(experiments_page)))
         content = open(readme).read()
         if README_START in content and README_END in content:
             head, rest = content.split(README_START, 1)
@@ -557,7 +775,8 @@ def main(argv=None):
                         help="with a submitit launcher, wait for the jobs and collect their results")
     parser.add_argument("--status", action="store_true", help="show the sweep's jobs and exit")
     parser.add_argument("--report", action="store_true",
-                        help="write tables and curves: today's defaults in the README, every tag in docs/results.md")
+                        help="write tables and curves: today's defaults in the README, every tag in docs/results.md, "
+                        "the paper's experiments in docs/experiments.md")
     parser.add_argument("--results-dir", default=RESULTS_DIR)
     args, extra = parser.parse_known_args(argv)
     if args.report:

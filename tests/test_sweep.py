@@ -314,3 +314,37 @@ def test_report_says_when_rows_came_from_different_versions():
                                    "bc": runs("bc", {"torch": "2.13.0+cpu"})})
     assert note.startswith("Versions differ between these rows: ") and note.count("(") == 3
     assert "cpu_capability AVX512 (rile)" in note and "cpu_capability AVX2 (gail)" in note and "torch 2.13.0+cpu (bc)" in note
+
+
+def test_the_experiments_page_from_results_files_alone(tmp_path):
+    """docs/experiments.md: per condition and method the seeds' last-quarter scores, their mean, its fraction of the
+    method's clean mean beside the paper's Humanoid fraction; rile.py minus the control with its interval; D on the
+    demonstrations and on the student; a figure; 'not yet run' and the command where no results exist."""
+    hopper = tmp_path / "results" / "Hopper-v4"
+    hopper.mkdir(parents=True)
+    for algo, seed, score in [("rile-paperD", 1, 0.9), ("rile-paperD", 2, 1.0), ("rile-paperD-control", 1, 1.0),
+                              ("rile-paperD-act1.25", 1, 0.5), ("rile-paperD-act1.25", 2, 0.45),
+                              ("rile-paperD-control-act1.25", 1, 0.8), ("rile-paperD-tr-naive", 1, 0.3)]:
+        r = fake_result(algo, seed, [1000.0 * score] * 200, 1000.0)  # 200 evaluations, 1k apart: a 200k run
+        r["reward_measures"] = [{"step": 160_000, "d_demos": 0.9, "d_student": 0.1},
+                                {"step": 200_000, "d_demos": 0.7, "d_student": 0.3}]
+        (hopper / f"{algo}__{seed}.json").write_text(json.dumps(r))
+    readme = tmp_path / "README.md"
+    readme.write_text("# x\n")
+    sweep.report(str(tmp_path / "results"), readme=str(readme))
+    page = (tmp_path / "docs" / "experiments.md").read_text()
+    table = page.split("### Hopper-v4")[1]
+    # rile.py: clean (0.9 + 1.0) / 2 = 0.95; actions 1.25: (0.5 + 0.45) / 2 = 0.475, 0.50 of clean; paper 5154 / 5928
+    assert "| clean | 0.90, 1.00: **0.95** | 1.00: **1.00** | not yet run | not yet run |" in table
+    assert ("| actions 1.25 | 0.50, 0.45: **0.47** = 0.50 of clean (paper 0.87) | 0.80: **0.80** = 0.80 of clean | "
+            "not yet run (paper 0.16) | not yet run (paper 0.82) |") in table
+    # rile.py minus the control: 0.475 - 0.8; D: the mean of the last quarter's measures, (0.9 + 0.7) / 2
+    assert "| actions 1.25 | 2 and 1 | -0.325 [-0.350, -0.300] | 0.80 / 0.20, 0.80 / 0.20 | 0.80 / 0.20 | - |" in table
+    assert "python sweep.py --scripts airl.py --env-ids Hopper-v4 --seeds 1 2 --total-timesteps 200000" in table
+    assert "--tag state0.5 --expert-state-noise 0.5  # states 0.5, airl.py" in table
+    png = tmp_path / "results" / "noise-Hopper-v4.png"
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and f"]({os.path.relpath(png, tmp_path / 'docs')})" in page
+    assert "### HalfCheetah-v4" in page and not (tmp_path / "results" / "noise-HalfCheetah-v4.png").exists()
+    trainer = page.split("## The six trainer rewards")[1].split("##")[0]
+    assert "| naive | 0.30 | 0.30 | never | `python sweep.py --scripts rile.py --env-ids Hopper-v4 --seeds 1 " in trainer
+    assert "| exp-difference (default) | 0.90 | 0.90 | 1k |" in trainer and "| sigmoid | not yet run |" in trainer
