@@ -26,6 +26,9 @@ Implementation choices and deviations
    not saturate to reach the level log pi sets; f and g never include b, softplus (D's own -log(1 - D)) does.
 9. `--expert-action-noise`, `--expert-state-noise`: Gaussian noise on the demonstrations (rile.py's noise robustness),
    drawn once per run from --seed, actions clipped to the box (`--no-expert-noise-clip`: not).
+10. `--reward-from runs/<run>/reward.pt` with `--student-action-noise`: covariate shift (rile.py's), a fresh agent
+   against a finished airl.py run's frozen g, h and level: `--reward softplus` pays what that run's agent was paid,
+   `--reward g` pays g alone (AIRL's transfer); the agent executes (and stores) noisy actions, evaluated without.
 
 Logged metrics: charts/{episodic_return,episodic_length,SPS}, eval/{return,normalized_return}, losses/{qf_loss,
 qf_values,qf_target_var,actor_loss,alpha_loss,alpha,entropy,disc_loss,disc_gp}, disc/{expert,policy}_prob, disc/level,
@@ -153,6 +156,10 @@ class Args:
     """clip the noisy demonstration actions to the action box (--no-expert-noise-clip: leave them outside it)"""
     expert_state_noise: float = 0.0
     """std of Gaussian noise on the demonstrations' states and next states, drawn once per run from --seed"""
+    reward_from: Optional[str] = None
+    """covariate shift: a fresh agent against this saved, frozen reward (runs/<run>/reward.pt of an airl.py run)"""
+    student_action_noise: float = 0.0
+    """std of Gaussian noise on the actions the agent executes while training, drawn every step (not in evaluation)"""
     dynamics_freq: int = 10_000
     """measure the learned reward (r_S, D, RFDC, FS-RFDC, CPR) into results.json every this many steps; 0 disables"""
 
@@ -255,8 +262,10 @@ def sac_reward(disc: AIRLDiscriminator, batch: "Batch", reward: str, anchor: boo
     return torch.where(at_abs, floor, rewards)
 
 
-def airl_update(agent: "SAC", disc: AIRLDiscriminator, rb: "ReplayBuffer", expert: dict, args) -> dict:
-    """One SAC update on f (or g, or softplus) from the current discriminator, then one discriminator update."""
+def airl_update(agent: "SAC", disc: AIRLDiscriminator, rb: "ReplayBuffer", expert: dict, args,
+                update_disc: bool = True) -> dict:
+    """One SAC update on f (or g, or softplus) from the current discriminator, then (if update_disc) one discriminator
+    update."""
     batch = rb.sample(args.batch_size)  # its env rewards are never used
     anchor = agent.absorbing and args.absorbing_anchor == "min"
     with torch.no_grad():  # softplus: D's own log pi of the batch's actions
@@ -265,6 +274,8 @@ def airl_update(agent: "SAC", disc: AIRLDiscriminator, rb: "ReplayBuffer", exper
     rewards = sac_reward(disc, batch, args.reward, anchor, log_pi)
     metrics = agent.update(batch.obs, batch.actions, batch.next_obs, rewards, batch.terminations, prefix="losses/")
     metrics.update({"reward/learned_mean": rewards.mean(), "reward/learned_std": rewards.std()})
+    if not update_disc:
+        return metrics
     idx = torch.randint(0, len(expert["obs"]), (args.disc_batch_size,), device=expert["obs"].device)
     policy = rb.sample(args.disc_batch_size, recent=args.disc_buffer_size)
     expert_x = tuple(expert[k][idx] for k in ("obs", "actions", "next_obs", "terminations"))
@@ -315,6 +326,54 @@ def reward_measures(reward, disc_prob, rb: "ReplayBuffer", expert: dict, absorbi
     measures["history"].append(out)
     return out
 # --- end shared: reward measures ---
+
+
+# --- shared: frozen reward ---
+def saved_reward(path: str, script: str, env_id: str, obs_dim: int, act_dim: int, flags: dict) -> dict:
+    """The reward.pt that --reward-from names: what a finished run of `script` saved on `env_id`, with the same dims and
+    the same `flags` (the Args fields that shape its reward, as this run has them); else a one-line error naming which
+    differs. Covariate shift: a fresh learner trains against it, frozen."""
+    fail = lambda problem: SystemExit(f"error: reward '{path}' {problem}")
+    if not os.path.isfile(path):
+        raise SystemExit(f"error: no saved reward at '{path}'; a finished {script} run writes runs/<run>/reward.pt")
+    try:
+        saved = torch.load(path, map_location="cpu", weights_only=True)
+    except Exception as e:
+        raise fail(f"is unreadable ({type(e).__name__}: {e})") from None
+    if saved.get("script") != script:
+        raise fail(f"was saved by {saved.get('script', 'an older version')}, not {script}; train against it there")
+    if saved["env_id"] != env_id:
+        raise fail(f"was learned on {saved['env_id']}, not {env_id}")
+    if (saved["obs_dim"], saved["act_dim"]) != (obs_dim, act_dim):
+        raise fail(f"has obs/act dims {saved['obs_dim']}/{saved['act_dim']}, {env_id} has {obs_dim}/{act_dim}")
+    for name, value in flags.items():
+        if saved.get(name) != value:
+            raise fail(f"was learned with --{name.replace('_', '-')} {saved.get(name)}; pass the same to train "
+                       "against it")
+    return saved
+# --- end shared: frozen reward ---
+
+
+REWARD_FLAGS = ("disc_hidden_dim", "state_only", "gamma", "disc_level_lr", "disc_policy_mix", "termination_remedy",
+                "absorbing_anchor")  # what shapes the saved networks and the reward made of them
+
+
+def reward_file(disc: AIRLDiscriminator, args, obs_dim: int, act_dim: int) -> dict:
+    """What reward.pt holds: g, h and the logit's level b, which --reward-from freezes to train a fresh agent against:
+    with --reward softplus the reward this run's agent had (the same --disc-policy-mix), with --reward g g alone."""
+    return {"script": "airl.py", "g": disc.g.state_dict(), "h": disc.h.state_dict(),
+            "level": None if disc.level is None else disc.level.detach(), "env_id": args.env_id, "obs_dim": obs_dim,
+            "act_dim": act_dim, **{name: getattr(args, name) for name in REWARD_FLAGS}}
+
+
+def load_reward(path: str, disc: AIRLDiscriminator, args, obs_dim: int, act_dim: int) -> dict:
+    """--reward-from: an airl.py reward.pt into `disc`, which no update changes from then on."""
+    saved = saved_reward(path, "airl.py", args.env_id, obs_dim, act_dim, {k: getattr(args, k) for k in REWARD_FLAGS})
+    disc.g.load_state_dict(saved["g"])
+    disc.h.load_state_dict(saved["h"])
+    if disc.level is not None:
+        disc.level.data.copy_(saved["level"])
+    return saved
 
 
 # --- shared: absorbing ---
@@ -884,6 +943,8 @@ if __name__ == "__main__":
                              args.disc_gp, zero_absorbing_potential=absorbing and args.absorbing_anchor == "min",
                              level_lr=args.disc_level_lr).to(device)
     rb = ReplayBuffer(aug_dim, act_dim, args.buffer_size, device)
+    if args.reward_from:  # covariate shift: a frozen learned reward, only the agent learns
+        load_reward(args.reward_from, disc, args, obs_dim, act_dim)
     measures = {"interval": None, "demos": None, "history": []}  # reward_measures' memory
     stateful = {"agent": agent, "disc": disc, "disc_optimizer": disc.optimizer, "replay_buffer": rb,
                 "measures": measures}
@@ -904,6 +965,9 @@ if __name__ == "__main__":
             action = env.action_space.sample()
         else:
             action = agent.actor.act(obs)
+        if args.student_action_noise > 0:  # covariate shift: the env executes, and the buffer stores, a noisy action
+            noise = np.random.normal(0, args.student_action_noise, act_dim)
+            action = np.clip(action + noise, low, high).astype(np.float32)
         next_obs, reward, terminated, truncated, info = env.step(action)
         store(rb, obs, action, next_obs, reward, terminated, absorbing)  # the env reward is stored, never learned from
         obs = next_obs
@@ -914,7 +978,7 @@ if __name__ == "__main__":
 
         # ALGO LOGIC: training
         if global_step >= args.learning_starts:
-            metrics = airl_update(agent, disc, rb, expert, args)
+            metrics = airl_update(agent, disc, rb, expert, args, update_disc=not args.reward_from)  # frozen: never
             if global_step % 1000 == 0:
                 run.log(metrics, global_step)
 
@@ -925,9 +989,6 @@ if __name__ == "__main__":
             save_file(os.path.join(run.dir, "dynamics.json"), measures["history"])
         run.end_step(step, agent.actor.act)
 
-    reward_file = {"g": disc.g.state_dict(), "h": disc.h.state_dict(), "env_id": args.env_id, "obs_dim": obs_dim,
-                   "act_dim": act_dim, "hidden_dim": args.disc_hidden_dim, "state_only": args.state_only,
-                   "termination_remedy": args.termination_remedy, "absorbing_anchor": args.absorbing_anchor}
     run.finish(agent.actor.act, {"actor.pt": actor_file(agent.actor, args.env_id, training_steps=args.total_timesteps),
-                                 "reward.pt": reward_file})
+                                 "reward.pt": reward_file(disc, args, obs_dim, act_dim)})
     env.close()

@@ -23,6 +23,8 @@ Implementation choices and deviations
    drawn once per run from --seed, actions clipped to the box (`--no-expert-noise-clip`: not).
 7. Termination bias (`--termination-remedy`, rile.py's flag; the paper is silent): `none` (default) keeps terminations
    terminal, which softplus >= 0 already makes unprofitable; `absorbing`: DAC's absorbing states for agent and expert.
+8. `--reward-from runs/<run>/reward.pt` with `--student-action-noise`: covariate shift (rile.py's), a fresh agent
+   against a finished gail.py run's frozen D, executing (and storing) noisy actions; evaluated without noise.
 
 Logged metrics: charts/{episodic_return,episodic_length,SPS}, eval/{return,normalized_return}, losses/{qf_loss,
 qf_values,qf_target_var,actor_loss,alpha_loss,alpha,entropy,disc_loss,disc_gp}, disc/{expert,policy}_prob,
@@ -147,6 +149,10 @@ class Args:
     """clip the noisy demonstration actions to the action box (--no-expert-noise-clip: leave them outside it)"""
     expert_state_noise: float = 0.0
     """std of Gaussian noise on the demonstrations' states and next states, drawn once per run from --seed"""
+    reward_from: Optional[str] = None
+    """covariate shift: a fresh agent against this saved, frozen reward (runs/<run>/reward.pt of a gail.py run)"""
+    student_action_noise: float = 0.0
+    """std of Gaussian noise on the actions the agent executes while training, drawn every step (not in evaluation)"""
     dynamics_freq: int = 10_000
     """measure the learned reward (r_S, D, RFDC, FS-RFDC, CPR) into results.json every this many steps; 0 disables"""
 
@@ -304,6 +310,48 @@ def reward_measures(reward, disc_prob, rb: "ReplayBuffer", expert: dict, absorbi
     measures["history"].append(out)
     return out
 # --- end shared: reward measures ---
+
+
+# --- shared: frozen reward ---
+def saved_reward(path: str, script: str, env_id: str, obs_dim: int, act_dim: int, flags: dict) -> dict:
+    """The reward.pt that --reward-from names: what a finished run of `script` saved on `env_id`, with the same dims and
+    the same `flags` (the Args fields that shape its reward, as this run has them); else a one-line error naming which
+    differs. Covariate shift: a fresh learner trains against it, frozen."""
+    fail = lambda problem: SystemExit(f"error: reward '{path}' {problem}")
+    if not os.path.isfile(path):
+        raise SystemExit(f"error: no saved reward at '{path}'; a finished {script} run writes runs/<run>/reward.pt")
+    try:
+        saved = torch.load(path, map_location="cpu", weights_only=True)
+    except Exception as e:
+        raise fail(f"is unreadable ({type(e).__name__}: {e})") from None
+    if saved.get("script") != script:
+        raise fail(f"was saved by {saved.get('script', 'an older version')}, not {script}; train against it there")
+    if saved["env_id"] != env_id:
+        raise fail(f"was learned on {saved['env_id']}, not {env_id}")
+    if (saved["obs_dim"], saved["act_dim"]) != (obs_dim, act_dim):
+        raise fail(f"has obs/act dims {saved['obs_dim']}/{saved['act_dim']}, {env_id} has {obs_dim}/{act_dim}")
+    for name, value in flags.items():
+        if saved.get(name) != value:
+            raise fail(f"was learned with --{name.replace('_', '-')} {saved.get(name)}; pass the same to train "
+                       "against it")
+    return saved
+# --- end shared: frozen reward ---
+
+
+REWARD_FLAGS = ("disc_hidden_dim", "reward_form", "termination_remedy")  # what shapes the saved reward
+
+
+def reward_file(disc: "Discriminator", args, obs_dim: int, act_dim: int) -> dict:
+    """What reward.pt holds: the discriminator, which --reward-from freezes to train a fresh agent against."""
+    return {"script": "gail.py", "disc": disc.state_dict(), "env_id": args.env_id, "obs_dim": obs_dim,
+            "act_dim": act_dim, **{name: getattr(args, name) for name in REWARD_FLAGS}}
+
+
+def load_reward(path: str, disc: "Discriminator", args, obs_dim: int, act_dim: int) -> dict:
+    """--reward-from: a gail.py reward.pt into `disc`, which no update changes from then on."""
+    saved = saved_reward(path, "gail.py", args.env_id, obs_dim, act_dim, {k: getattr(args, k) for k in REWARD_FLAGS})
+    disc.load_state_dict(saved["disc"])
+    return saved
 
 
 # --- shared: absorbing ---
@@ -870,6 +918,8 @@ if __name__ == "__main__":
     disc = Discriminator(aug_dim + act_dim, args.disc_hidden_dim, args.disc_lr, args.disc_gp, args.disc_gp_center,
                          stats, args.disc_normalize == "pooled").to(device)
     rb = ReplayBuffer(aug_dim, act_dim, args.buffer_size, device)
+    if args.reward_from:  # covariate shift: a frozen learned reward, only the agent learns
+        load_reward(args.reward_from, disc, args, obs_dim, act_dim)
     measures = {"interval": None, "demos": None, "history": []}  # reward_measures' memory
     stateful = {"agent": agent, "disc": disc, "disc_optimizer": disc.optimizer, "replay_buffer": rb,
                 "measures": measures}
@@ -887,6 +937,9 @@ if __name__ == "__main__":
             action = env.action_space.sample()
         else:
             action = agent.actor.act(obs)
+        if args.student_action_noise > 0:  # covariate shift: the env executes, and the buffer stores, a noisy action
+            noise = np.random.normal(0, args.student_action_noise, act_dim)
+            action = np.clip(action + noise, low, high).astype(np.float32)
         next_obs, reward, terminated, truncated, info = env.step(action)
         store(rb, obs, action, next_obs, reward, terminated, absorbing)  # the env reward is stored, never learned from
         obs = next_obs
@@ -897,7 +950,8 @@ if __name__ == "__main__":
 
         # ALGO LOGIC: training
         if global_step >= args.learning_starts:
-            metrics = gail_update(agent, disc, rb, expert, args, update_disc=global_step % args.disc_update_every == 0)
+            update_disc = not args.reward_from and global_step % args.disc_update_every == 0  # a frozen reward: never
+            metrics = gail_update(agent, disc, rb, expert, args, update_disc=update_disc)
             if global_step % 1000 == 0:
                 run.log(metrics, global_step)
 
@@ -908,9 +962,6 @@ if __name__ == "__main__":
             save_file(os.path.join(run.dir, "dynamics.json"), measures["history"])
         run.end_step(step, agent.actor.act)
 
-    reward_file = {"disc": disc.state_dict(), "env_id": args.env_id, "obs_dim": obs_dim, "act_dim": act_dim,
-                   "disc_hidden_dim": args.disc_hidden_dim, "reward_form": args.reward_form,
-                   "termination_remedy": args.termination_remedy}
     run.finish(agent.actor.act, {"actor.pt": actor_file(agent.actor, args.env_id, training_steps=args.total_timesteps),
-                                 "reward.pt": reward_file})
+                                 "reward.pt": reward_file(disc, args, obs_dim, act_dim)})
     env.close()

@@ -28,10 +28,10 @@ Implementation choices and deviations (the measurements behind each: docs/rile.m
    towards -|A| (`--no-autotune`: the paper's 0.2).
 8. A tenth of every trainer batch is expert pairs, each with a fresh a_T (`--trainer-expert-fraction 0.1`; 0 with
    --state-only). Kept: the paper's 0 did worse than both default seeds on HalfCheetah-v4 and Walker2d-v4.
-9. The paper's experiments as flags: `--trainer-reward` (its six rewards), `--expert-action-noise`,
-   `--expert-state-noise`, `--reward-from` with `--student-action-noise` (covariate shift), `--student-expert-fraction`.
-   Demonstration noise is drawn once per run from --seed (one noisy demonstrator), actions clipped to the box
-   (`--no-expert-noise-clip`: the paper does not say); its 0.2 and 0.5 on a [-0.4, 0.4] box are 0.5 and 1.25 on [-1, 1].
+9. The paper's experiments as flags: `--trainer-reward` (its six); `--expert-action-noise`, `--expert-state-noise`,
+   drawn once per run from --seed, actions clipped unless `--no-expert-noise-clip` (its 0.2 and 0.5 on [-0.4, 0.4] are
+   0.5 and 1.25 on [-1, 1]); covariate shift: `--reward-from` (a run's frozen trainer and D) with
+   `--student-action-noise` (executed and stored); `--student-expert-fraction`.
 10. From states only (`--state-only`): D scores (s, s') as in GAIfO; the trainer observes (s, a_S), or (s, s') with
    `--trainer-obs transition`.
 11. The trainer's discount is 0.9 (`--trainer-gamma`). Its action does not change its next observation, so its best
@@ -568,6 +568,32 @@ def reward_measures(reward, disc_prob, rb: "ReplayBuffer", expert: dict, absorbi
 # --- end shared: reward measures ---
 
 
+# --- shared: frozen reward ---
+def saved_reward(path: str, script: str, env_id: str, obs_dim: int, act_dim: int, flags: dict) -> dict:
+    """The reward.pt that --reward-from names: what a finished run of `script` saved on `env_id`, with the same dims and
+    the same `flags` (the Args fields that shape its reward, as this run has them); else a one-line error naming which
+    differs. Covariate shift: a fresh learner trains against it, frozen."""
+    fail = lambda problem: SystemExit(f"error: reward '{path}' {problem}")
+    if not os.path.isfile(path):
+        raise SystemExit(f"error: no saved reward at '{path}'; a finished {script} run writes runs/<run>/reward.pt")
+    try:
+        saved = torch.load(path, map_location="cpu", weights_only=True)
+    except Exception as e:
+        raise fail(f"is unreadable ({type(e).__name__}: {e})") from None
+    if saved.get("script") != script:
+        raise fail(f"was saved by {saved.get('script', 'an older version')}, not {script}; train against it there")
+    if saved["env_id"] != env_id:
+        raise fail(f"was learned on {saved['env_id']}, not {env_id}")
+    if (saved["obs_dim"], saved["act_dim"]) != (obs_dim, act_dim):
+        raise fail(f"has obs/act dims {saved['obs_dim']}/{saved['act_dim']}, {env_id} has {obs_dim}/{act_dim}")
+    for name, value in flags.items():
+        if saved.get(name) != value:
+            raise fail(f"was learned with --{name.replace('_', '-')} {saved.get(name)}; pass the same to train "
+                       "against it")
+    return saved
+# --- end shared: frozen reward ---
+
+
 def rile_measures(trainer: "SAC", disc: "Discriminator", rb: "ReplayBuffer", expert: dict, args, state: dict,
                   measures: dict, step: int) -> dict:
     """reward_measures for RILe's r_S (the trainer's action; r_s_follows_d: whether the trainer passes D on), with the
@@ -594,29 +620,22 @@ def rile_measures(trainer: "SAC", disc: "Discriminator", rb: "ReplayBuffer", exp
                            extra)
 
 
+REWARD_FLAGS = ("student_reward", "trainer_obs", "trainer_hidden_dim", "disc_hidden_dim", "termination_remedy",
+                "state_only")  # what shapes the saved reward
+
+
 def reward_file(trainer: Optional["SAC"], disc: "Discriminator", args, obs_dim: int, act_dim: int) -> dict:
     """What reward.pt holds: the learned reward (the trainer's actor gives r_S; the control's, None: D does) and the
-    discriminator."""
-    return {"trainer_actor": trainer and trainer.actor.state_dict(), "disc": disc.state_dict(), "env_id": args.env_id,
-            "obs_dim": obs_dim, "act_dim": act_dim, "trainer_hidden_dim": args.trainer_hidden_dim,
-            "disc_hidden_dim": args.disc_hidden_dim, "termination_remedy": args.termination_remedy,
-            "state_only": args.state_only, "trainer_obs": args.trainer_obs, "student_reward": args.student_reward}
+    discriminator, which --reward-from freezes to train a fresh student against."""
+    return {"script": "rile.py", "trainer_actor": trainer and trainer.actor.state_dict(), "disc": disc.state_dict(),
+            "env_id": args.env_id, "obs_dim": obs_dim, "act_dim": act_dim,
+            **{name: getattr(args, name) for name in REWARD_FLAGS}}
 
 
 def load_reward(path: str, trainer: Optional["SAC"], disc: "Discriminator", args, obs_dim: int, act_dim: int) -> dict:
-    """A saved reward.pt (the trainer's actor, none for the control, and the discriminator) into `trainer` and `disc`,
-    with clear errors."""
-    if not os.path.isfile(path):
-        raise SystemExit(f"error: no saved reward at '{path}'; a finished rile.py run writes runs/<run>/reward.pt")
-    saved = torch.load(path, map_location="cpu", weights_only=True)
-    if (saved["env_id"], saved["obs_dim"], saved["act_dim"]) != (args.env_id, obs_dim, act_dim):
-        raise SystemExit(f"error: reward '{path}' was learned on {saved['env_id']}, not {args.env_id}")
-    saved.setdefault("student_reward", "trainer")  # files from before the control
-    for name in ("termination_remedy", "state_only", "trainer_obs", "student_reward"):
-        if saved[name] != getattr(args, name):
-            flag = f"--{name.replace('_', '-')}"
-            raise SystemExit(f"error: reward '{path}' was learned with {flag} {saved[name]}; "
-                             "pass the same to train against it")
+    """--reward-from: a rile.py reward.pt into `trainer` (none for the control) and `disc`, which no update changes from
+    then on."""
+    saved = saved_reward(path, "rile.py", args.env_id, obs_dim, act_dim, {k: getattr(args, k) for k in REWARD_FLAGS})
     if trainer is not None:
         trainer.actor.load_state_dict(saved["trainer_actor"])
     disc.load_state_dict(saved["disc"])
@@ -1209,11 +1228,10 @@ if __name__ == "__main__":
             action = env.action_space.sample()
         else:
             action = student.actor.act(obs)
-        executed = action
-        if args.student_action_noise > 0:
+        if args.student_action_noise > 0:  # covariate shift: the env executes, and the buffer stores, a noisy action
             noise = np.random.normal(0, args.student_action_noise, act_dim)
-            executed = np.clip(action + noise, low, high).astype(np.float32)
-        next_obs, reward, terminated, truncated, info = env.step(executed)
+            action = np.clip(action + noise, low, high).astype(np.float32)
+        next_obs, reward, terminated, truncated, info = env.step(action)
         a_trainer, a_trainer_absorbing = (), ()  # the control: no trainer acts
         if trainer is not None:
             a_trainer, a_trainer_absorbing = trainer_acts(trainer, obs, action, next_obs, terminated, absorbing,

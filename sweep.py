@@ -478,10 +478,10 @@ METHODS = {
     "gail-paperD-autotune": ("gail.py", "gail.py", "paperD-autotune", ""),
     "airl": ("airl.py", "airl.py", "", ""),
 }
-# Noisy demonstrations: condition -> (the tag it adds to each method's, its flags); clean: the default runs.
-NOISE = {"clean": ("", ""), "actions 0.5": ("act0.5", "--expert-action-noise 0.5"),
-         "actions 1.25": ("act1.25", "--expert-action-noise 1.25"),
-         "states 0.5": ("state0.5", "--expert-state-noise 0.5")}
+# Noisy demonstrations: condition -> (the tag it adds to each method's, its flags, its seeds); clean: the default runs.
+NOISE = {"clean": ("", "", (1, 2, 3, 4)), "actions 0.5": ("act0.5", "--expert-action-noise 0.5", (1, 2)),
+         "actions 1.25": ("act1.25", "--expert-action-noise 1.25", (1, 2)),
+         "states 0.5": ("state0.5", "--expert-state-noise 0.5", (1, 2))}
 NOISE_ENVS = {  # env -> (methods, conditions)
     "Hopper-v4": (["rile-paperD", "rile-paperD-control", "gail-paperD-autotune", "airl"], list(NOISE)),
     "HalfCheetah-v4": (["rile-paperD", "rile-paperD-control", "gail-paperD-autotune"], ["clean", "actions 1.25",
@@ -493,6 +493,14 @@ PAPER_NOISE = {"clean": {"rile": 5928, "gail": 5709, "airl": 5623},
                "actions 0.5": {"rile": 5280, "gail": 5275, "airl": 4869},
                "actions 1.25": {"rile": 5154, "gail": 902, "airl": 4589},
                "states 0.5": {"rile": 5205, "gail": 917, "airl": 4780}}
+# Covariate shift on Hopper-v4: a fresh learner against the frozen reward of each method's seed-1 default run
+# (committed under benchmarks/rewards/), with noise on the actions it executes; the source row is that run itself.
+SHIFT_REWARD = "--reward-from benchmarks/rewards/{env_id}/{algo}__1.pt"
+SHIFT = {"source run": ("", "", (1,)), "no noise": ("shift0", "--student-action-noise 0", (1, 2)),
+         "noise 0.5": ("shift0.5", "--student-action-noise 0.5", (1,)),
+         "noise 1.25": ("shift1.25", "--student-action-noise 1.25", (1, 2))}
+PAPER_SHIFT = {"no noise": {"rile": 5928, "airl": 5623}, "noise 0.5": {"rile": 5201, "airl": 5005},
+               "noise 1.25": {"rile": 5196, "airl": 4967}}  # Humanoid-v2; its 0.2 and 0.5 on [-0.4, 0.4]
 
 
 def condition_algo(method: str, tag: str) -> str:
@@ -521,52 +529,93 @@ def last_quarter_d(r: dict) -> str:
     return f"{mean('d_demos'):.2f} / {mean('d_student'):.2f}" if rows else "-"
 
 
+def condition_runs(algos: dict, methods: list, conditions: dict) -> dict:
+    """{(method, condition): its 200k runs of the condition's seeds}."""
+    return {(m, c): [r for r in runs_of(algos, condition_algo(m, tag)) if r["seed"] in seeds]
+            for m in methods for c, (tag, _, seeds) in conditions.items()}
+
+
+def condition_table(title: str, methods: list, conditions: list, scores: dict, baseline: str, paper: dict) -> list:
+    """Per condition and method: each seed's last-quarter score, their mean in bold, its fraction of the baseline
+    condition's mean, and the paper's fraction at that condition ('not yet run' without results)."""
+    lines = [f"| {title} | " + " | ".join(METHODS[m][0] for m in methods) + " |", "|---" * (len(methods) + 1) + "|"]
+    for c in conditions:
+        cells = []
+        for m in methods:
+            x, base, stem = scores[m, c], scores[m, baseline], m.split("-")[0]
+            ours = "control" not in m and stem in paper.get(c, {}) and c != baseline
+            of_paper = f"paper {paper[c][stem] / paper[baseline][stem]:.2f}" if ours else ""
+            if not x:
+                cells.append("not yet run" + (f" ({of_paper})" if of_paper else ""))
+                continue
+            cell = f"{', '.join(f'{v:.2f}' for v in x)}: **{np.mean(x):.2f}**"
+            if c != baseline and base and c in paper:
+                cell += f" = {np.mean(x) / np.mean(base):.2f} of {baseline}" + (f" ({of_paper})" if of_paper else "")
+            cells.append(cell)
+        lines.append(f"| {c} | " + " | ".join(cells) + " |")
+    return lines
+
+
+def trainer_rows(conditions: list, scores: dict) -> list:
+    """rile.py minus the control per condition: difference of last-quarter means and its 95% bootstrap interval."""
+    rows = []
+    for c in conditions:
+        a, b = scores["rile-paperD", c], scores["rile-paperD-control", c]
+        if a and b:
+            lo, hi = difference_ci(a, b)
+            rows.append((c, f"{len(a)} and {len(b)} | {np.mean(a) - np.mean(b):+.3f} [{lo:+.3f}, {hi:+.3f}]"))
+    return rows
+
+
+def figure(png: str, page_dir: str, title: str, methods: list, conditions: list, scores: dict, baseline: str) -> str:
+    """The bars (written when a condition beside the baseline has results, else removed) and their markdown link."""
+    if not any(scores[m, c] for m in methods for c in conditions if c != baseline):
+        if os.path.exists(png):
+            os.remove(png)
+        return ""
+    plot_conditions(title, methods, conditions, scores, png)
+    return f"![{title}]({os.path.relpath(png, page_dir)})\n\n"
+
+
 def noise_section(grouped: dict, results_dir: str, page_dir: str) -> str:
     parts = []
     for env_id, (methods, conditions) in NOISE_ENVS.items():
         algos = grouped.get(env_id, {})
-        scores = {(m, c): [last_quarter(r, normalize=True) for r in runs_of(algos, condition_algo(m, NOISE[c][0]))]
-                  for m in methods for c in conditions}
-        lines = ["| demonstrations | " + " | ".join(METHODS[m][0] for m in methods) + " |",
-                 "|---" * (len(methods) + 1) + "|"]
-        for c in conditions:
-            cells = []
-            for m in methods:
-                x, clean = scores[m, c], scores[m, "clean"]
-                paper = PAPER_NOISE[c].get(m.split("-")[0]) if "control" not in m else None
-                of_clean = paper and f"paper {paper / PAPER_NOISE['clean'][m.split('-')[0]]:.2f}"
-                if not x:
-                    cells.append("not yet run" + (f" ({of_clean})" if c != "clean" and of_clean else ""))
-                    continue
-                cell = f"{', '.join(f'{v:.2f}' for v in x)}: **{np.mean(x):.2f}**"
-                if c != "clean" and clean:
-                    cell += f" = {np.mean(x) / np.mean(clean):.2f} of clean" + (f" ({of_clean})" if of_clean else "")
-                cells.append(cell)
-            lines.append(f"| {c} | " + " | ".join(cells) + " |")
+        runs = condition_runs(algos, methods, {c: NOISE[c] for c in conditions})
+        scores = {key: [last_quarter(r, normalize=True) for r in rs] for key, rs in runs.items()}
+        lines = condition_table("demonstrations", methods, conditions, scores, "clean", PAPER_NOISE)
         gap = ["| demonstrations | seeds | rile.py minus the control: last quarter [95% interval] | "
                + " | ".join(f"D on demonstrations / on the student, {METHODS[m][0]}" for m in methods[:3]) + " |",
                "|---" * 6 + "|"]
-        for c in conditions:
-            a, b = scores["rile-paperD", c], scores["rile-paperD-control", c]
-            if a and b:
-                lo, hi = difference_ci(a, b)
-                d = [", ".join(last_quarter_d(r) for r in runs_of(algos, condition_algo(m, NOISE[c][0])))
-                     for m in methods[:3]]
-                gap.append(f"| {c} | {len(a)} and {len(b)} | {np.mean(a) - np.mean(b):+.3f} [{lo:+.3f}, {hi:+.3f}] | "
-                           + " | ".join(x or "-" for x in d) + " |")
+        for c, cell in trainer_rows(conditions, scores):
+            d = [", ".join(last_quarter_d(r) for r in runs[m, c]) for m in methods[:3]]
+            gap.append(f"| {c} | {cell} | " + " | ".join(x or "-" for x in d) + " |")
+        commands = [f"{sweep_command(m, env_id, tag, flags, ' '.join(map(str, seeds)))}  # {c}, {METHODS[m][0]}"
+                    for c in conditions if c != "clean" for m in methods for tag, flags, seeds in [NOISE[c]]]
         png = os.path.join(results_dir, f"noise-{env_id}.png")
-        if any(scores[m, c] for m in methods for c in conditions if c != "clean"):
-            plot_conditions(env_id, methods, conditions, scores, png)
-        elif os.path.exists(png):
-            os.remove(png)
-        commands = [f"{sweep_command(m, env_id, *NOISE[c])}  # {c}, {METHODS[m][0]}"
-                    for c in conditions if c != "clean" for m in methods]
         parts.append(f"### {env_id}\n\n" + "\n".join(lines) + "\n\n" + "\n".join(gap) + "\n\n"
-                     + (f"![{env_id}: clean against noisy demonstrations]({os.path.relpath(png, page_dir)})\n\n"
-                        if os.path.exists(png) else "")
+                     + figure(png, page_dir, f"{env_id}: noisy demonstrations", methods, conditions, scores, "clean")
                      + "The commands (the clean row is the default runs of the README's tables):\n\n```bash\n"
                      + "\n".join(commands) + "\n```\n")
     return "\n".join(parts)
+
+
+def shift_section(grouped: dict, results_dir: str, page_dir: str, env_id: str = "Hopper-v4") -> str:
+    methods, conditions = list(METHODS), list(SHIFT)
+    runs = condition_runs(grouped.get(env_id, {}), methods, SHIFT)
+    scores = {key: [last_quarter(r, normalize=True) for r in rs] for key, rs in runs.items()}
+    lines = condition_table("student's actions", methods, conditions, scores, "no noise", PAPER_SHIFT)
+    gap = ["| student's actions | seeds | rile.py minus the control: last quarter [95% interval] |", "|---|---|---|"]
+    gap += [f"| {c} | {cell} |" for c, cell in trainer_rows(conditions[1:], scores)]
+    commands = [f"{sweep_command(m, env_id, tag, SHIFT_REWARD.format(env_id=env_id, algo=m) + ' ' + flags, seeds)}"
+                f"  # {c}, {METHODS[m][0]}" for c in conditions[1:] for m in methods
+                for tag, flags, seeds in [(SHIFT[c][0], SHIFT[c][1], " ".join(map(str, SHIFT[c][2])))]]
+    png = os.path.join(results_dir, f"shift-{env_id}.png")
+    return (f"### {env_id}\n\n" + "\n".join(lines) + "\n\n" + "\n".join(gap) + "\n\n"
+            + figure(png, page_dir, f"{env_id}: a frozen reward, noisy student actions", methods, conditions[1:],
+                     scores, "no noise")
+            + "The commands (the source row is the seed-1 default run of the README's tables):\n\n```bash\n"
+            + "\n".join(commands) + "\n```\n")
 
 
 # The trainer's design, on Hopper-v4 seed 1: variant -> (tag added to rile.py's, flags); the first row is the default.
@@ -629,12 +678,14 @@ SHIFT_HEAD = """## Covariate shift: a frozen reward, a fresh student with noisy 
 
 The paper trains in the clean env, freezes the learned reward, then trains a fresh student against it with Gaussian
 noise on the actions it executes (Humanoid-v2: RILe keeps 0.88 of its no-noise score at both levels, AIRL 0.89 and
-0.88). rile.py does it with `--reward-from runs/<run>/reward.pt --student-action-noise <std>` (the reward file a
-finished run saves; a control run's file freezes its D): not yet run.
-
-    python rile.py --env-id Hopper-v4 --total-timesteps 200000 --run-name source
-    python rile.py --env-id Hopper-v4 --total-timesteps 200000 --student-action-noise 1.25 \\
-        --reward-from runs/source/reward.pt
+0.88). rile.py, gail.py and airl.py do it with `--reward-from runs/<run>/reward.pt --student-action-noise <std>`:
+the reward a finished run of the same script saved, its networks frozen, nothing but the fresh learner learning; the
+env executes, and the buffer stores, the noisy action (clipped to the box); evaluations run without noise. The frozen
+rewards are those of each method's seed-1 default run on Hopper-v4 (`benchmarks/rewards/`, with the run and commit
+that made each): rile.py's trainer, the control's D (r_S = v(D)), gail.py's D (its softplus reward), and airl.py's g,
+h and level with `--reward softplus`, the reward its own agent learned from (`--reward g`: g alone, AIRL's transfer,
+not run). The noise 0.5 and 1.25 are the paper's 0.2 and 0.5 on Humanoid's [-0.4, 0.4] box. Each cell as above, as a
+fraction of the method's no-noise score; the source row is the run the reward came from.
 """
 
 TRAINER_HEAD = """## The six trainer rewards
@@ -652,12 +703,14 @@ Expert Data"): `--student-expert-fraction`, `--trainer-expert-fraction`; Hopper-
 
 def experiments_text(grouped: dict, results_dir: str, page_dir: str) -> str:
     hopper = grouped.get("Hopper-v4", {})
-    return (EXPERIMENTS_HEAD + "\n" + NOISE_HEAD + "\n" + noise_section(grouped, results_dir, page_dir) + "\n"
-            + SHIFT_HEAD + "\n" + TRAINER_HEAD + "\n" + variants_table(hopper, "Hopper-v4", TRAINER_REWARDS) + "\n\n"
-            + EXPERT_DATA_HEAD + "\n" + variants_table(hopper, "Hopper-v4", EXPERT_DATA) + "\n")
+    sections = [EXPERIMENTS_HEAD, NOISE_HEAD, noise_section(grouped, results_dir, page_dir), SHIFT_HEAD,
+                shift_section(grouped, results_dir, page_dir), TRAINER_HEAD,
+                variants_table(hopper, "Hopper-v4", TRAINER_REWARDS) + "\n", EXPERT_DATA_HEAD,
+                variants_table(hopper, "Hopper-v4", EXPERT_DATA) + "\n"]
+    return "\n".join(sections)
 
 
-def plot_conditions(env_id: str, methods: list, conditions: list, scores: dict, path: str) -> None:
+def plot_conditions(title: str, methods: list, conditions: list, scores: dict, path: str) -> None:
     """Bars: each method's mean last-quarter score per condition, its seeds as dots."""
     import matplotlib
 
@@ -674,7 +727,7 @@ def plot_conditions(env_id: str, methods: list, conditions: list, scores: dict, 
             ax.plot([x] * len(y), y, "k.", ms=4)
     ax.set_xticks(range(len(methods)), [METHODS[m][0] for m in methods])
     ax.axhline(1.0, color="k", ls="--", lw=1)
-    ax.set(title=f"{env_id}: noisy demonstrations, 200k steps", ylabel="last quarter, normalized")
+    ax.set(title=f"{title}, 200k steps", ylabel="last quarter, normalized")
     ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1))
     fig.tight_layout()
     fig.savefig(path, dpi=100)

@@ -94,7 +94,7 @@ def tiny_run(run_dir, step: int, method: str, reward_scale: float = 1.0) -> None
             net.g, net.h = reward_dynamics.airl.mlp(4, 8), reward_dynamics.airl.mlp(2, 8)
         layers = [net.net[0], net.net[2], net.net[4]] if method == "gail" else [net.g[0], net.g[2], net.g[4]]
         saved = ({"disc": net, "disc_hidden_dim": 8, "reward_form": "softplus", "termination_remedy": "none"}
-                 if method == "gail" else {"g": net.g, "h": net.h, "hidden_dim": 8, "state_only": False,
+                 if method == "gail" else {"g": net.g, "h": net.h, "disc_hidden_dim": 8, "state_only": False,
                                            "termination_remedy": "none"})
     with torch.no_grad():
         for p in net.parameters():

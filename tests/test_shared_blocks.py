@@ -10,8 +10,8 @@ ROOT = Path(__file__).resolve().parents[1]
 BLOCK = re.compile(r"^# --- shared: (?P<name>[\w ]+) ---\n(?P<body>.*?)^# --- end shared: (?P=name) ---$", re.S | re.M)
 # gail.py holds every plumbing block; every script holds those it needs, in this order
 REFERENCE = "gail.py"
-ORDER = ["rile", "discriminator", "gail", "reward measures", "absorbing", "env", "actor", "critic", "sac", "buffer",
-         "demonstrations", "expert data", "evaluation", "run"]
+ORDER = ["rile", "discriminator", "gail", "reward measures", "frozen reward", "absorbing", "env", "actor", "critic", "sac",
+         "buffer", "demonstrations", "expert data", "evaluation", "run"]
 SCRIPTS = ["expert.py", "gail.py", "rile.py", "airl.py", "gaifo.py", "iqlearn.py", "drail_disc.py", "bc.py", "bco.py"]
 
 

@@ -348,3 +348,26 @@ def test_the_experiments_page_from_results_files_alone(tmp_path):
     trainer = page.split("## The six trainer rewards")[1].split("##")[0]
     assert "| naive | 0.30 | 0.30 | never | `python sweep.py --scripts rile.py --env-ids Hopper-v4 --seeds 1 " in trainer
     assert "| exp-difference (default) | 0.90 | 0.90 | 1k |" in trainer and "| sigmoid | not yet run |" in trainer
+
+
+def test_the_covariate_shift_table_against_the_no_noise_score(tmp_path):
+    """Covariate shift: the source row is the seed-1 default run; each noisy row is a fraction of the no-noise row,
+    the paper's Humanoid fraction beside it (RILe 5196 / 5928 at the heavy level); the commands name each method's
+    frozen reward."""
+    hopper = tmp_path / "results" / "Hopper-v4"
+    hopper.mkdir(parents=True)
+    for algo, seed, score in [("rile-paperD", 1, 0.9), ("rile-paperD", 2, 1.0), ("rile-paperD-shift0", 1, 0.8),
+                              ("rile-paperD-shift0", 2, 0.6), ("rile-paperD-shift1.25", 1, 0.35),
+                              ("rile-paperD-control-shift1.25", 1, 0.5), ("rile-paperD-control-shift1.25", 2, 0.5)]:
+        (hopper / f"{algo}__{seed}.json").write_text(json.dumps(fake_result(algo, seed, [1000.0 * score] * 200, 1000.0)))
+    readme = tmp_path / "README.md"
+    readme.write_text("# x\n")
+    sweep.report(str(tmp_path / "results"), readme=str(readme))
+    shift = (tmp_path / "docs" / "experiments.md").read_text().split("## Covariate shift")[1].split("\n## ")[0]
+    assert "| source run | 0.90: **0.90** | not yet run | not yet run | not yet run |" in shift  # seed 1 only
+    assert "| no noise | 0.80, 0.60: **0.70** | not yet run |" in shift
+    assert "| noise 1.25 | 0.35: **0.35** = 0.50 of no noise (paper 0.88) | 0.50, 0.50: **0.50** | " in shift
+    assert "| noise 1.25 | 1 and 2 | -0.150 [-0.150, -0.150] |" in shift
+    assert ("--tag airl-shift0.5" not in shift and "--tag shift0.5 --reward-from benchmarks/rewards/Hopper-v4/airl__1.pt "
+            "--student-action-noise 0.5  # noise 0.5, airl.py") in shift
+    assert (tmp_path / "results" / "shift-Hopper-v4.png").exists()

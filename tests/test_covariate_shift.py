@@ -1,0 +1,139 @@
+"""Covariate shift, alike in rile.py, gail.py and airl.py: `--reward-from runs/<run>/reward.pt` trains a fresh learner
+against the reward a finished run of the same script saved, frozen, with `--student-action-noise` on the actions it
+executes (and stores) while training; evaluations run without noise. A file from another script, env, dims or reward
+flags, or no file: one line saying which."""
+
+import json
+from dataclasses import replace
+
+import numpy as np
+import pytest
+import torch
+
+import airl
+import gail
+import rile
+from conftest import ROOT
+
+PENDULUM = ["--env-id", "InvertedPendulum-v4", "--learning-starts", "200", "--eval-freq", "300", "--eval-episodes", "2",
+            "--hidden-dim", "32", "--batch-size", "32", "--disc-batch-size", "16", "--num-expert-trajs", "2",
+            "--dynamics-freq", "300", "--expert-path", str(ROOT / "experts/InvertedPendulum-v4.npz")]
+SCRIPTS = {"rile.py": rile, "gail.py": gail, "airl.py": airl}
+OBS, ACT = 3, 2
+
+
+def source(name: str, **kw):
+    """A learner and a reward of script `name` (small networks), with a buffer of 20 transitions."""
+    torch.manual_seed(kw.pop("seed", 0))
+    module = SCRIPTS[name]
+    args = module.Args(hidden_dim=16, batch_size=8, disc_batch_size=4, disc_hidden_dim=8, **kw)
+    agent = module.SAC(OBS, ACT, -np.ones(ACT), np.ones(ACT), args, "cpu")
+    if name == "airl.py":
+        disc = airl.AIRLDiscriminator(OBS, ACT, 8, args.gamma, args.state_only, args.disc_lr, args.disc_gp,
+                                      level_lr=args.disc_level_lr)
+        with torch.no_grad():
+            disc.level.fill_(0.7)
+    else:
+        disc = module.Discriminator(OBS + ACT, 8, args.disc_lr, args.disc_gp)
+    rb = module.ReplayBuffer(OBS, ACT, 20, "cpu")
+    for i in range(20):
+        rb.add(np.full(OBS, i / 10), np.full(ACT, 0.3), np.full(OBS, i / 10 + 0.1), 9.0, i % 7 == 6)
+    return args, agent, disc, rb
+
+
+@pytest.mark.parametrize("name", ["gail.py", "airl.py"])
+def test_the_frozen_reward_is_the_saved_one_and_no_reward_parameter_moves(name, tmp_path, monkeypatch):
+    """The saved reward loaded into another learner's networks gives, on the batches it learns from, the rewards the
+    saved networks give; and updates with the reward frozen change no reward parameter."""
+    module = SCRIPTS[name]
+    args, agent, disc, rb = source(name)
+    torch.save(module.reward_file(disc, args, OBS, ACT), tmp_path / "reward.pt")
+    _, fresh_agent, frozen, _ = source(name, seed=5)  # other weights until the file is loaded
+    module.load_reward(str(tmp_path / "reward.pt"), frozen, args, OBS, ACT)
+    before = [p.detach().clone() for p in frozen.parameters()]
+    seen = []
+    monkeypatch.setattr(fresh_agent, "update", lambda *batch, prefix: seen.append(batch) or {})
+    for _ in range(3):
+        if name == "gail.py":
+            gail.gail_update(fresh_agent, frozen, rb, None, args, update_disc=False)
+        else:
+            airl.airl_update(fresh_agent, frozen, rb, None, args, update_disc=False)
+    for obs, actions, next_obs, rewards, terminations in seen:
+        with torch.no_grad():
+            if name == "gail.py":
+                want = gail.gail_reward(disc(torch.cat([obs, actions], -1)), args.reward_form)
+            else:  # softplus of the saved logit f + b - log pi, log pi of the uniform box (--disc-policy-mix 1)
+                log_pi = airl.policy_log_prob(fresh_agent, obs, actions, args.disc_policy_mix)
+                want = airl.sac_reward(disc, airl.Batch(obs, actions, next_obs, None, terminations, None), args.reward,
+                                       False, log_pi)
+        assert torch.allclose(rewards, want, atol=1e-6) and not torch.any(rewards == 9.0)
+    assert all(torch.equal(a, b) for a, b in zip(before, frozen.parameters()))
+
+
+@pytest.mark.parametrize("name", ["rile.py", "gail.py", "airl.py"])
+def test_a_file_that_does_not_fit_is_refused_in_one_line(name, tmp_path):
+    module = SCRIPTS[name]
+    args, agent, disc, rb = source(name)
+    trainer = (rile.make_trainer(OBS, ACT, args, "cpu"),) if name == "rile.py" else ()
+    torch.save(module.reward_file(*trainer, disc, args, OBS, ACT), tmp_path / "reward.pt")
+    other = "gail.py" if name != "gail.py" else "rile.py"
+    args_other, _, disc_other, _ = source(other)
+    trainer_other = (rile.make_trainer(OBS, ACT, args_other, "cpu"),) if other == "rile.py" else ()
+    torch.save(SCRIPTS[other].reward_file(*trainer_other, disc_other, args_other, OBS, ACT), tmp_path / "other.pt")
+    flag, value = {"rile.py": ("termination_remedy", "none"), "gail.py": ("reward_form", "logit"),
+                   "airl.py": ("disc_policy_mix", 0.0)}[name]
+    load = lambda path, a=args, obs=OBS: module.load_reward(str(tmp_path / path), *trainer, disc, a, obs, ACT)
+    cases = [(lambda: load("missing.pt"), f"no saved reward at '{tmp_path / 'missing.pt'}'; a finished {name} run"),
+             (lambda: load("other.pt"), f"was saved by {other}, not {name}"),
+             (lambda: load("reward.pt", a=replace(args, env_id="Walker2d-v4")), "was learned on Hopper-v4, not Walker2d-v4"),
+             (lambda: load("reward.pt", obs=OBS + 1), f"has obs/act dims {OBS}/{ACT}, Hopper-v4 has {OBS + 1}/{ACT}"),
+             (lambda: load("reward.pt", a=replace(args, **{flag: value})), f"was learned with --{flag.replace('_', '-')} ")]
+    for call, message in cases:
+        with pytest.raises(SystemExit) as error:
+            call()
+        assert message in str(error.value) and "\n" not in str(error.value)
+
+
+@pytest.mark.parametrize("name", ["rile.py", "gail.py", "airl.py"])
+def test_a_fresh_learner_against_a_frozen_reward_acts_with_noise_and_is_evaluated_without(name, run, tmp_path):
+    """End to end: a source run saves its reward; a fresh run against it stores noisy executed actions (std 10 on a
+    [-3, 3] box: most at the bounds, where the actor's tanh never is), keeps every reward parameter as saved, and
+    evaluates the actor it saves without noise."""
+    extra = ["--trainer-hidden-dim", "32", "--trainer-batch-size", "32"] if name == "rile.py" else []
+    run(name, *PENDULUM, *extra, "--total-timesteps", "400", "--run-name", "src")
+    run(name, *PENDULUM, *extra, "--total-timesteps", "600", "--run-name", "cs", "--reward-from", "runs/src/reward.pt",
+        "--student-action-noise", "10", "--checkpoint-freq", "300")
+    saved = torch.load(tmp_path / "runs/src/reward.pt", weights_only=True)
+    after = torch.load(tmp_path / "runs/cs/reward.pt", weights_only=True)
+    networks = ["trainer_actor", "disc"] if name == "rile.py" else ["disc"] if name == "gail.py" else ["g", "h"]
+    for key in networks:
+        assert saved[key].keys() == after[key].keys() and all(torch.equal(saved[key][k], after[key][k]) for k in saved[key])
+    if name == "airl.py":
+        assert torch.equal(saved["level"], after["level"])
+    ckpt = torch.load(tmp_path / "runs/cs/checkpoint.pt", weights_only=False)
+    assert not ckpt["disc_optimizer"]["state"]  # D never stepped
+    storage = ckpt["replay_buffer"]["storage"][:300]
+    obs_dim = 5 if name == "rile.py" else 4  # rile.py's absorbing indicator column
+    actions = storage[:, obs_dim]
+    assert (actions.abs() == 3.0).float().mean() > 0.6 and actions.abs().max() <= 3.0  # clipped, mostly at the bounds
+    results = json.loads((tmp_path / "runs/cs/results.json").read_text())
+    actor_file = torch.load(tmp_path / "runs/cs/actor.pt", weights_only=True)
+    actor = rile.Actor(4, 1, np.array([-3.0]), np.array([3.0]), actor_file["hidden_dim"])
+    actor.load_state_dict(actor_file["actor"])
+    returns = rile.evaluate(actor.act, "InvertedPendulum-v4", 2, seed=1 + 100_000)  # the scripts' evaluation, no noise
+    assert results["evals"][-1]["mean"] == pytest.approx(float(np.mean(returns)))
+
+
+def test_the_frozen_rewards_tool_saves_each_sources_reward_with_its_provenance(run, tmp_path):
+    """benchmarks/frozen_rewards.py (here 300 steps of InvertedPendulum-v4, no learning yet): the source's reward.pt,
+    byte for byte, under <out>/<env-id>/<algo>__1.pt, and a README line naming the command and the commit."""
+    out = tmp_path / "rewards"
+    (tmp_path / "experts").symlink_to(ROOT / "experts")  # the default demonstrations, as from the repository root
+    run("benchmarks/frozen_rewards.py", "--env-id", "InvertedPendulum-v4", "--methods", "gail-paperD-autotune", "airl",
+        "--total-timesteps", "300", "--out", str(out))
+    for method in ("gail-paperD-autotune", "airl"):
+        source = tmp_path / f"runs/source__InvertedPendulum-v4__{method}__1/reward.pt"
+        assert (out / f"InvertedPendulum-v4/{method}__1.pt").read_bytes() == source.read_bytes()
+    lines = (out / "README.md").read_text().splitlines()
+    airl_line = next(line for line in lines if line.startswith("- `InvertedPendulum-v4/airl__1.pt`"))
+    assert "python airl.py --env-id InvertedPendulum-v4 --seed 1 --total-timesteps 300" in airl_line and " at commit " in airl_line
