@@ -691,7 +691,9 @@ fraction of the method's no-noise score; the source row is the run the reward ca
 TRAINER_HEAD = """## The six trainer rewards
 
 The paper's ablation of the trainer's reward (its figure "Trainer-Discriminator Relation"); `--trainer-reward`,
-Hopper-v4 seed 1. The first evaluation at or above 0.8 is the paper's convergence measure.
+Hopper-v4 seed 1. The first evaluation at or above 0.8 is the paper's convergence measure. What the formulas predict
+before any run (naive and exp-naive give the student nothing D says; sigmoid a small reward rising with D; the others
+about v(D)): [rile.md](rile.md#the-six-trainer-rewards-what-the-formulas-predict).
 """
 
 EXPERT_DATA_HEAD = """## Expert data in the buffers

@@ -74,6 +74,36 @@ def test_exp_difference_is_maximised_at_v_of_d():
     assert best.item() == pytest.approx(0.6, abs=1e-6)
 
 
+def test_what_each_trainer_reward_teaches_a_trainer_on_a_fixed_discriminator():
+    """docs/rile.md's predictions for the six trainer rewards, on a fixed D (sigmoid(3 x) of o_T's first entry, so that
+    v(D) = 2D - 1 spans [-0.98, 0.98] over the grid) after 400 updates of a small trainer at the paper's fixed
+    temperature 0.2 on uniform a_T. Its deterministic action, what pays the student: v(D) for difference and
+    exp-difference; for multiplication, whose entropy-free best action is sign(v(D)), a steeper v(D) of the same sign;
+    near 0 whatever D says for naive and exp-naive, which a_T does not enter; for sigmoid, whose entropy-free best
+    action is +1, a rise from about 0 where D is 0 to about 0.5 where D is 1."""
+    d_of = lambda o: torch.sigmoid(3 * o[:, 0])
+    grid = torch.stack([torch.linspace(-1.5, 1.5, 101), torch.zeros(101)], -1)  # o_T = (s, a_S), one dim each
+    v = 2 * d_of(grid) - 1
+    learned = {}
+    for name, reward in rile.TRAINER_REWARDS.items():
+        torch.manual_seed(0)
+        trainer = rile.make_trainer(1, 1, rile.Args(trainer_hidden_dim=32, trainer_lr=3e-3, trainer_tau=0.05), "cpu")
+        for _ in range(400):
+            o, a, o_next = torch.rand(64, 2) * 3 - 1.5, torch.rand(64, 1) * 2 - 1, torch.rand(64, 2) * 3 - 1.5
+            trainer.update(o, a, o_next, reward(d_of(o), a.squeeze(-1)), torch.zeros(64), prefix="trainer/")
+        with torch.no_grad():
+            learned[name] = trainer.actor.deterministic(grid).squeeze(-1)
+    corr = lambda x: float(np.corrcoef(x.numpy(), v.numpy())[0, 1])
+    for name in ("difference", "exp-difference"):
+        assert corr(learned[name]) > 0.98 and (learned[name] - v).abs().mean() < 0.2, name
+    steep, far = learned["multiplication"], v.abs() > 0.2
+    assert (steep.sign() == v.sign())[far].all() and (steep.abs() > v.abs())[(v.abs() > 0.2) & (v.abs() < 0.6)].all()
+    for name in ("naive", "exp-naive"):
+        assert learned[name].abs().max() < 0.15, name
+    rising = learned["sigmoid"]
+    assert rising[:10].abs().max() < 0.15 and 0.3 < rising[-10:].min() and rising.max() < 0.7 and corr(rising) > 0.9
+
+
 def test_student_reward_is_the_trainers_action_on_that_batch():
     args = tiny_args()
     student, trainer, disc, rb, expert, state = learners(args)
