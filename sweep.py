@@ -481,7 +481,9 @@ METHODS = {
 # Noisy demonstrations: condition -> (the tag it adds to each method's, its flags, its seeds); clean: the default runs.
 NOISE = {"clean": ("", "", (1, 2, 3, 4)), "actions 0.5": ("act0.5", "--expert-action-noise 0.5", (1, 2)),
          "actions 1.25": ("act1.25", "--expert-action-noise 1.25", (1, 2)),
-         "states 0.5": ("state0.5", "--expert-state-noise 0.5", (1, 2))}
+         "states 0.5": ("state0.5", "--expert-state-noise 0.5", (1, 2)),
+         "actions 1.25 unclipped": ("act1.25-noclip", "--expert-action-noise 1.25 --no-expert-noise-clip", (1,))}
+ONLY = {"actions 1.25 unclipped": ("rile-paperD", "gail-paperD-autotune")}  # conditions that not every method runs
 NOISE_ENVS = {  # env -> (methods, conditions)
     "Hopper-v4": (["rile-paperD", "rile-paperD-control", "gail-paperD-autotune", "airl"], list(NOISE)),
     "HalfCheetah-v4": (["rile-paperD", "rile-paperD-control", "gail-paperD-autotune"], ["clean", "actions 1.25",
@@ -543,15 +545,17 @@ def condition_table(title: str, methods: list, conditions: list, scores: dict, b
         cells = []
         for m in methods:
             x, base, stem = scores[m, c], scores[m, baseline], m.split("-")[0]
-            ours = "control" not in m and stem in paper.get(c, {}) and c != baseline
-            of_paper = f"paper {paper[c][stem] / paper[baseline][stem]:.2f}" if ours else ""
-            if not x:
-                cells.append("not yet run" + (f" ({of_paper})" if of_paper else ""))
-                continue
-            cell = f"{', '.join(f'{v:.2f}' for v in x)}: **{np.mean(x):.2f}**"
-            if c != baseline and base and c in paper:
-                cell += f" = {np.mean(x) / np.mean(base):.2f} of {baseline}" + (f" ({of_paper})" if of_paper else "")
-            cells.append(cell)
+            in_paper = "control" not in m and stem in paper.get(c, {}) and c != baseline
+            of_paper = f" (paper {paper[c][stem] / paper[baseline][stem]:.2f})" if in_paper else ""
+            if m not in ONLY.get(c, methods):
+                cells.append("-")  # not part of this condition
+            elif not x:
+                cells.append("not yet run" + of_paper)
+            else:
+                cell = f"{', '.join(f'{v:.2f}' for v in x)}: **{np.mean(x):.2f}**"
+                if conditions.index(c) > conditions.index(baseline) and base:
+                    cell += f" = {np.mean(x) / np.mean(base):.2f} of {baseline}{of_paper}"
+                cells.append(cell)
         lines.append(f"| {c} | " + " | ".join(cells) + " |")
     return lines
 
@@ -590,8 +594,12 @@ def noise_section(grouped: dict, results_dir: str, page_dir: str) -> str:
         for c, cell in trainer_rows(conditions, scores):
             d = [", ".join(last_quarter_d(r) for r in runs[m, c]) for m in methods[:3]]
             gap.append(f"| {c} | {cell} | " + " | ".join(x or "-" for x in d) + " |")
-        commands = [f"{sweep_command(m, env_id, tag, flags, ' '.join(map(str, seeds)))}  # {c}, {METHODS[m][0]}"
-                    for c in conditions if c != "clean" for m in methods for tag, flags, seeds in [NOISE[c]]]
+        commands = []
+        for c in conditions[1:]:
+            tag, flags, seeds = NOISE[c]
+            for m in ONLY.get(c, methods):
+                command = sweep_command(m, env_id, tag, flags, " ".join(map(str, seeds)))
+                commands.append(f"{command}  # {c}, {METHODS[m][0]}")
         png = os.path.join(results_dir, f"noise-{env_id}.png")
         parts.append(f"### {env_id}\n\n" + "\n".join(lines) + "\n\n" + "\n".join(gap) + "\n\n"
                      + figure(png, page_dir, f"{env_id}: noisy demonstrations", methods, conditions, scores, "clean")
@@ -607,9 +615,13 @@ def shift_section(grouped: dict, results_dir: str, page_dir: str, env_id: str = 
     lines = condition_table("student's actions", methods, conditions, scores, "no noise", PAPER_SHIFT)
     gap = ["| student's actions | seeds | rile.py minus the control: last quarter [95% interval] |", "|---|---|---|"]
     gap += [f"| {c} | {cell} |" for c, cell in trainer_rows(conditions[1:], scores)]
-    commands = [f"{sweep_command(m, env_id, tag, SHIFT_REWARD.format(env_id=env_id, algo=m) + ' ' + flags, seeds)}"
-                f"  # {c}, {METHODS[m][0]}" for c in conditions[1:] for m in methods
-                for tag, flags, seeds in [(SHIFT[c][0], SHIFT[c][1], " ".join(map(str, SHIFT[c][2])))]]
+    commands = []
+    for c in conditions[1:]:
+        tag, flags, seeds = SHIFT[c]
+        for m in methods:
+            reward = SHIFT_REWARD.format(env_id=env_id, algo=m)
+            command = sweep_command(m, env_id, tag, f"{reward} {flags}", " ".join(map(str, seeds)))
+            commands.append(f"{command}  # {c}, {METHODS[m][0]}")
     png = os.path.join(results_dir, f"shift-{env_id}.png")
     return (f"### {env_id}\n\n" + "\n".join(lines) + "\n\n" + "\n".join(gap) + "\n\n"
             + figure(png, page_dir, f"{env_id}: a frozen reward, noisy student actions", methods, conditions[1:],
@@ -670,8 +682,10 @@ each seed, their mean in bold, that mean as a fraction of the method's clean mea
 at the same level (of returns; Humanoid's random-action return is small beside its expert's). The second table:
 what the trainer adds under each condition, and whether D saturates (D near 1 on the demonstrations and near 0 on the
 student leaves little to learn from), as the mean over the last quarter of the reward measures taken every 10k steps.
-Other levels, or iqlearn.py and bc.py (which take no noise flags), are not run: the same sweep with another
-`--expert-action-noise`/`--expert-state-noise` and `--tag` adds them.
+The paper does not say whether its noisy actions stayed in the box; unclipped ones outside it would let D tell the
+demonstrations from any policy at once, so the last Hopper-v4 row runs rile.py and gail.py (seed 1) with
+`--no-expert-noise-clip`. Other levels, or iqlearn.py and bc.py (which take no noise flags), are not run: the same
+sweep with another `--expert-action-noise`/`--expert-state-noise` and `--tag` adds them.
 """
 
 SHIFT_HEAD = """## Covariate shift: a frozen reward, a fresh student with noisy actions

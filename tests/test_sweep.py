@@ -324,7 +324,8 @@ def test_the_experiments_page_from_results_files_alone(tmp_path):
     hopper.mkdir(parents=True)
     for algo, seed, score in [("rile-paperD", 1, 0.9), ("rile-paperD", 2, 1.0), ("rile-paperD-control", 1, 1.0),
                               ("rile-paperD-act1.25", 1, 0.5), ("rile-paperD-act1.25", 2, 0.45),
-                              ("rile-paperD-control-act1.25", 1, 0.8), ("rile-paperD-tr-naive", 1, 0.3)]:
+                              ("rile-paperD-control-act1.25", 1, 0.8), ("rile-paperD-tr-naive", 1, 0.3),
+                              ("rile-paperD-act1.25-noclip", 1, 0.19)]:
         r = fake_result(algo, seed, [1000.0 * score] * 200, 1000.0)  # 200 evaluations, 1k apart: a 200k run
         r["reward_measures"] = [{"step": 160_000, "d_demos": 0.9, "d_student": 0.1},
                                 {"step": 200_000, "d_demos": 0.7, "d_student": 0.3}]
@@ -340,6 +341,9 @@ def test_the_experiments_page_from_results_files_alone(tmp_path):
             "not yet run (paper 0.16) | not yet run (paper 0.82) |") in table
     # rile.py minus the control: 0.475 - 0.8; D: the mean of the last quarter's measures, (0.9 + 0.7) / 2
     assert "| actions 1.25 | 2 and 1 | -0.325 [-0.350, -0.300] | 0.80 / 0.20, 0.80 / 0.20 | 0.80 / 0.20 | - |" in table
+    # a condition only rile.py and gail.py run: '-' for the others, and commands for those two only
+    assert "| actions 1.25 unclipped | 0.19: **0.19** = 0.20 of clean | - | not yet run | - |" in table
+    assert "--no-expert-noise-clip  # actions 1.25 unclipped, gail.py" in table and "unclipped, airl.py" not in table
     assert "python sweep.py --scripts airl.py --env-ids Hopper-v4 --seeds 1 2 --total-timesteps 200000" in table
     assert "--tag state0.5 --expert-state-noise 0.5  # states 0.5, airl.py" in table
     png = tmp_path / "results" / "noise-Hopper-v4.png"
