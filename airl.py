@@ -27,8 +27,9 @@ Implementation choices and deviations
 9. `--expert-action-noise`, `--expert-state-noise`: Gaussian noise on the demonstrations (rile.py's noise robustness),
    drawn once per run from --seed, actions clipped to the box (`--no-expert-noise-clip`: not).
 10. `--reward-from runs/<run>/reward.pt` with `--student-action-noise`: covariate shift (rile.py's), a fresh agent
-   against a finished airl.py run's frozen g, h and level: `--reward softplus` pays what that run's agent was paid,
-   `--reward g` pays g alone (AIRL's transfer); the agent executes (and stores) noisy actions, evaluated without.
+   against a finished airl.py run's frozen g, h and level: `--reward softplus` pays what that run's agent was paid
+   (at `--disc-policy-mix 1`), `--reward g` pays g alone (AIRL's transfer); the agent executes (and stores) noisy
+   actions, evaluated without.
 
 Logged metrics: charts/{episodic_return,episodic_length,SPS}, eval/{return,normalized_return}, losses/{qf_loss,
 qf_values,qf_target_var,actor_loss,alpha_loss,alpha,entropy,disc_loss,disc_gp}, disc/{expert,policy}_prob, disc/level,
@@ -335,7 +336,7 @@ def saved_reward(path: str, script: str, env_id: str, obs_dim: int, act_dim: int
     differs. Covariate shift: a fresh learner trains against it, frozen."""
     fail = lambda problem: SystemExit(f"error: reward '{path}' {problem}")
     if not os.path.isfile(path):
-        raise SystemExit(f"error: no saved reward at '{path}'; a finished {script} run writes runs/<run>/reward.pt")
+        raise fail(f"does not exist; a finished {script} run writes runs/<run>/reward.pt")
     try:
         saved = torch.load(path, map_location="cpu", weights_only=True)
     except Exception as e:
@@ -360,7 +361,8 @@ REWARD_FLAGS = ("disc_hidden_dim", "state_only", "gamma", "disc_level_lr", "disc
 
 def reward_file(disc: AIRLDiscriminator, args, obs_dim: int, act_dim: int) -> dict:
     """What reward.pt holds: g, h and the logit's level b, which --reward-from freezes to train a fresh agent against:
-    with --reward softplus the reward this run's agent had (the same --disc-policy-mix), with --reward g g alone."""
+    with --reward softplus the reward this run's agent had (with --disc-policy-mix 1, where log pi is a constant; below
+    1 it is the fresh agent's), with --reward g g alone."""
     return {"script": "airl.py", "g": disc.g.state_dict(), "h": disc.h.state_dict(),
             "level": None if disc.level is None else disc.level.detach(), "env_id": args.env_id, "obs_dim": obs_dim,
             "act_dim": act_dim, **{name: getattr(args, name) for name in REWARD_FLAGS}}

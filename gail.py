@@ -319,7 +319,7 @@ def saved_reward(path: str, script: str, env_id: str, obs_dim: int, act_dim: int
     differs. Covariate shift: a fresh learner trains against it, frozen."""
     fail = lambda problem: SystemExit(f"error: reward '{path}' {problem}")
     if not os.path.isfile(path):
-        raise SystemExit(f"error: no saved reward at '{path}'; a finished {script} run writes runs/<run>/reward.pt")
+        raise fail(f"does not exist; a finished {script} run writes runs/<run>/reward.pt")
     try:
         saved = torch.load(path, map_location="cpu", weights_only=True)
     except Exception as e:

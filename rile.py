@@ -172,7 +172,7 @@ class Args:
     trainer_release_threshold: float = 1.0
     """a frozen trainer learns again once the statistic on D's current rewards passes this (the paper's: inf, never)"""
     trainer_obs: Literal["state-action", "transition"] = "state-action"
-    """what the trainer observes: the student's (s, a_S), or its (s, s') with --state-only (the paper's)"""
+    """what the trainer observes: the student's (s, a_S) (the paper's), or its (s, s') with --state-only"""
 
     # Discriminator arguments
     disc_hidden_dim: int = 64
@@ -575,7 +575,7 @@ def saved_reward(path: str, script: str, env_id: str, obs_dim: int, act_dim: int
     differs. Covariate shift: a fresh learner trains against it, frozen."""
     fail = lambda problem: SystemExit(f"error: reward '{path}' {problem}")
     if not os.path.isfile(path):
-        raise SystemExit(f"error: no saved reward at '{path}'; a finished {script} run writes runs/<run>/reward.pt")
+        raise fail(f"does not exist; a finished {script} run writes runs/<run>/reward.pt")
     try:
         saved = torch.load(path, map_location="cpu", weights_only=True)
     except Exception as e:

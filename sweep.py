@@ -28,7 +28,7 @@ import sys
 import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
-from typing import List, Optional
+from typing import List, NamedTuple, Optional
 
 import numpy as np
 
@@ -471,12 +471,20 @@ def trainer_gap(rows: dict) -> str:
 
 EXPERIMENTS_PAGE = "docs/experiments.md"
 EXPERIMENT_RUN = "--total-timesteps 200000 --threads 1 --checkpoint-freq 10000"  # every experiment's runs: 200k steps
-# The methods each experiment compares, by the results-file algo of their defaults: (column, script, tag, flags).
+class Method(NamedTuple):
+    name: str  # its column
+    script: str
+    tag: str  # of its default runs
+    flags: str  # beyond the script's defaults
+    paper: Optional[str]  # its key in the paper's tables (None: not in the paper)
+
+
+# The methods each experiment compares, by the results-file algo of their default runs.
 METHODS = {
-    "rile-paperD": ("rile.py", "rile.py", "paperD", ""),
-    "rile-paperD-control": ("the control", "rile.py", "paperD-control", "--student-reward discriminator"),
-    "gail-paperD-autotune": ("gail.py", "gail.py", "paperD-autotune", ""),
-    "airl": ("airl.py", "airl.py", "", ""),
+    "rile-paperD": Method("rile.py", "rile.py", "paperD", "", "rile"),
+    "rile-paperD-control": Method("the control", "rile.py", "paperD-control", "--student-reward discriminator", None),
+    "gail-paperD-autotune": Method("gail.py", "gail.py", "paperD-autotune", "", "gail"),
+    "airl": Method("airl.py", "airl.py", "", "", "airl"),
 }
 # Noisy demonstrations: condition -> (the tag it adds to each method's, its flags, its seeds); clean: the default runs.
 NOISE = {"clean": ("", "", (1, 2, 3, 4)), "actions 0.5": ("act0.5", "--expert-action-noise 0.5", (1, 2)),
@@ -489,20 +497,22 @@ NOISE_ENVS = {  # env -> (methods, conditions)
     "HalfCheetah-v4": (["rile-paperD", "rile-paperD-control", "gail-paperD-autotune"], ["clean", "actions 1.25",
                                                                                       "states 0.5"]),
 }
-# The paper's noise table (Humanoid-v2, returns), at the same noise relative to the action box: its action noise 0.2
+# The paper's table "Robustness to different noise levels in the expert demonstrations" (Humanoid-v2, returns), at
+# the same noise relative to the action box: its action noise 0.2
 # and 0.5 on [-0.4, 0.4] are 0.5 and 1.25 on our [-1, 1]; state noise is absolute (its 0.5).
 PAPER_NOISE = {"clean": {"rile": 5928, "gail": 5709, "airl": 5623},
                "actions 0.5": {"rile": 5280, "gail": 5275, "airl": 4869},
                "actions 1.25": {"rile": 5154, "gail": 902, "airl": 4589},
                "states 0.5": {"rile": 5205, "gail": 917, "airl": 4780}}
-# Covariate shift on Hopper-v4: a fresh learner against the frozen reward of each method's seed-1 default run
-# (committed under benchmarks/rewards/), with noise on the actions it executes; the source row is that run itself.
+# Covariate shift on Hopper-v4: a fresh learner against the frozen reward of each method's seed-1 default run, which
+# benchmarks/frozen_rewards.py makes (benchmarks/rewards/, and the source run's results file under the tag "source"),
+# with noise on the actions it executes.
 SHIFT_REWARD = "--reward-from benchmarks/rewards/{env_id}/{algo}__1.pt"
-SHIFT = {"source run": ("", "", (1,)), "no noise": ("shift0", "--student-action-noise 0", (1, 2)),
+SHIFT = {"source run": ("source", "", (1,)), "no noise": ("shift0", "--student-action-noise 0", (1, 2)),
          "noise 0.5": ("shift0.5", "--student-action-noise 0.5", (1,)),
          "noise 1.25": ("shift1.25", "--student-action-noise 1.25", (1, 2))}
 PAPER_SHIFT = {"no noise": {"rile": 5928, "airl": 5623}, "noise 0.5": {"rile": 5201, "airl": 5005},
-               "noise 1.25": {"rile": 5196, "airl": 4967}}  # Humanoid-v2; its 0.2 and 0.5 on [-0.4, 0.4]
+               "noise 1.25": {"rile": 5196, "airl": 4967}}  # "Robustness to covariate shifts", Humanoid-v2
 
 
 def condition_algo(method: str, tag: str) -> str:
@@ -511,10 +521,10 @@ def condition_algo(method: str, tag: str) -> str:
 
 
 def sweep_command(method: str, env_id: str, tag: str, flags: str, seeds: str = "1 2") -> str:
-    _, script, base, method_flags = METHODS[method]
-    tag = "-".join(t for t in (base, tag) if t)
-    return " ".join(x for x in (f"python sweep.py --scripts {script} --env-ids {env_id} --seeds {seeds}",
-                                EXPERIMENT_RUN, f"--tag {tag}" if tag else "", method_flags, flags) if x)
+    m = METHODS[method]
+    tag = "-".join(t for t in (m.tag, tag) if t)
+    return " ".join(x for x in (f"python sweep.py --scripts {m.script} --env-ids {env_id} --seeds {seeds}",
+                                EXPERIMENT_RUN, f"--tag {tag}" if tag else "", m.flags, flags) if x)
 
 
 def runs_of(algos: dict, algo: str) -> list:
@@ -540,13 +550,13 @@ def condition_runs(algos: dict, methods: list, conditions: dict) -> dict:
 def condition_table(title: str, methods: list, conditions: list, scores: dict, baseline: str, paper: dict) -> list:
     """Per condition and method: each seed's last-quarter score, their mean in bold, its fraction of the baseline
     condition's mean, and the paper's fraction at that condition ('not yet run' without results)."""
-    lines = [f"| {title} | " + " | ".join(METHODS[m][0] for m in methods) + " |", "|---" * (len(methods) + 1) + "|"]
+    lines = [f"| {title} | " + " | ".join(METHODS[m].name for m in methods) + " |", "|---" * (len(methods) + 1) + "|"]
     for c in conditions:
         cells = []
         for m in methods:
-            x, base, stem = scores[m, c], scores[m, baseline], m.split("-")[0]
-            in_paper = "control" not in m and stem in paper.get(c, {}) and c != baseline
-            of_paper = f" (paper {paper[c][stem] / paper[baseline][stem]:.2f})" if in_paper else ""
+            x, base, key = scores[m, c], scores[m, baseline], METHODS[m].paper
+            in_paper = key in paper.get(c, {}) and c != baseline
+            of_paper = f" (paper {paper[c][key] / paper[baseline][key]:.2f})" if in_paper else ""
             if m not in ONLY.get(c, methods):
                 cells.append("-")  # not part of this condition
             elif not x:
@@ -589,17 +599,17 @@ def noise_section(grouped: dict, results_dir: str, page_dir: str) -> str:
         scores = {key: [last_quarter(r, normalize=True) for r in rs] for key, rs in runs.items()}
         lines = condition_table("demonstrations", methods, conditions, scores, "clean", PAPER_NOISE)
         gap = ["| demonstrations | seeds | rile.py minus the control: last quarter [95% interval] | "
-               + " | ".join(f"D on demonstrations / on the student, {METHODS[m][0]}" for m in methods[:3]) + " |",
-               "|---" * 6 + "|"]
+               + " | ".join(f"D on demonstrations / on the student, {METHODS[m].name}" for m in methods) + " |",
+               "|---" * (len(methods) + 3) + "|"]
         for c, cell in trainer_rows(conditions, scores):
-            d = [", ".join(last_quarter_d(r) for r in runs[m, c]) for m in methods[:3]]
+            d = [", ".join(last_quarter_d(r) for r in runs[m, c]) for m in methods]
             gap.append(f"| {c} | {cell} | " + " | ".join(x or "-" for x in d) + " |")
         commands = []
         for c in conditions[1:]:
             tag, flags, seeds = NOISE[c]
             for m in ONLY.get(c, methods):
                 command = sweep_command(m, env_id, tag, flags, " ".join(map(str, seeds)))
-                commands.append(f"{command}  # {c}, {METHODS[m][0]}")
+                commands.append(f"{command}  # {c}, {METHODS[m].name}")
         png = os.path.join(results_dir, f"noise-{env_id}.png")
         parts.append(f"### {env_id}\n\n" + "\n".join(lines) + "\n\n" + "\n".join(gap) + "\n\n"
                      + figure(png, page_dir, f"{env_id}: noisy demonstrations", methods, conditions, scores, "clean")
@@ -621,12 +631,12 @@ def shift_section(grouped: dict, results_dir: str, page_dir: str, env_id: str = 
         for m in methods:
             reward = SHIFT_REWARD.format(env_id=env_id, algo=m)
             command = sweep_command(m, env_id, tag, f"{reward} {flags}", " ".join(map(str, seeds)))
-            commands.append(f"{command}  # {c}, {METHODS[m][0]}")
+            commands.append(f"{command}  # {c}, {METHODS[m].name}")
     png = os.path.join(results_dir, f"shift-{env_id}.png")
     return (f"### {env_id}\n\n" + "\n".join(lines) + "\n\n" + "\n".join(gap) + "\n\n"
             + figure(png, page_dir, f"{env_id}: a frozen reward, noisy student actions", methods, conditions[1:],
                      scores, "no noise")
-            + "The commands (the source row is the seed-1 default run of the README's tables):\n\n```bash\n"
+            + "The commands, after `python benchmarks/frozen_rewards.py` (the source row):\n\n```bash\n"
             + "\n".join(commands) + "\n```\n")
 
 
@@ -695,25 +705,31 @@ noise on the actions it executes (Humanoid-v2: RILe keeps 0.88 of its no-noise s
 0.88). rile.py, gail.py and airl.py do it with `--reward-from runs/<run>/reward.pt --student-action-noise <std>`:
 the reward a finished run of the same script saved, its networks frozen, nothing but the fresh learner learning; the
 env executes, and the buffer stores, the noisy action (clipped to the box); evaluations run without noise. The frozen
-rewards are those of each method's seed-1 default run on Hopper-v4 (`benchmarks/rewards/`, with the run and commit
-that made each): rile.py's trainer, the control's D (r_S = v(D)), gail.py's D (its softplus reward), and airl.py's g,
-h and level with `--reward softplus`, the reward its own agent learned from (`--reward g`: g alone, AIRL's transfer,
-not run). The noise 0.5 and 1.25 are the paper's 0.2 and 0.5 on Humanoid's [-0.4, 0.4] box. Each cell as above, as a
-fraction of the method's no-noise score; the source row is the run the reward came from.
+rewards come from each method's seed-1 default run on Hopper-v4, run again by `python benchmarks/frozen_rewards.py`
+(first: the commands below read its files), which writes them to `benchmarks/rewards/` with the run and commit
+behind each, and the source runs' results files under the tag `source`: rile.py's trainer, the control's D (r_S =
+v(D)), gail.py's D (its softplus reward), and airl.py's g, h and level with `--reward softplus`, the reward its own
+agent learned from (`--reward g`: g alone, AIRL's transfer, not run). The noise 0.5 and 1.25 are the paper's 0.2 and
+0.5 on Humanoid's [-0.4, 0.4] box. Each cell as above, as a fraction of the method's no-noise score; the source row
+is the run each reward came from.
 """
 
 TRAINER_HEAD = """## The six trainer rewards
 
 The paper's ablation of the trainer's reward (its figure "Trainer-Discriminator Relation"); `--trainer-reward`,
-Hopper-v4 seed 1. The first evaluation at or above 0.8 is the paper's convergence measure. What the formulas predict
-before any run (naive and exp-naive give the student nothing D says; sigmoid a small reward rising with D; the others
-about v(D)): [rile.md](rile.md#the-six-trainer-rewards-what-the-formulas-predict).
+Hopper-v4 seed 1. The first evaluation at or above 0.8 is the paper's convergence measure. The paper: "exponential naive
+converges faster but plateaus at a lower final reward, whereas exponential difference yields the highest
+performance". What the formulas predict before any run (naive and exp-naive give the student nothing D says; sigmoid a
+small reward rising with D; the others about v(D)):
+[rile.md](rile.md#the-six-trainer-rewards-what-the-formulas-predict).
 """
 
 EXPERT_DATA_HEAD = """## Expert data in the buffers
 
 The paper replaces a share of the student's or the trainer's batches with expert pairs (its figure "Explicit Usage of
-Expert Data"): `--student-expert-fraction`, `--trainer-expert-fraction`; Hopper-v4 seed 1.
+Expert Data"): `--student-expert-fraction`, `--trainer-expert-fraction`; Hopper-v4 seed 1. The paper: more expert data
+speeds convergence but lowers the final score, and with only expert data the student drops markedly; 0 % scored
+highest. Today's default already puts 0.1 expert pairs in the trainer's batches (rile.py's header, choice 8).
 """
 
 
@@ -741,7 +757,7 @@ def plot_conditions(title: str, methods: list, conditions: list, scores: dict, p
         ax.bar([x for x, _ in xs], [np.mean(y) for _, y in xs], width, color=plt.cm.tab10(j), label=c)
         for x, y in xs:
             ax.plot([x] * len(y), y, "k.", ms=4)
-    ax.set_xticks(range(len(methods)), [METHODS[m][0] for m in methods])
+    ax.set_xticks(range(len(methods)), [METHODS[m].name for m in methods])
     ax.axhline(1.0, color="k", ls="--", lw=1)
     ax.set(title=f"{title}, 200k steps", ylabel="last quarter, normalized")
     ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1))

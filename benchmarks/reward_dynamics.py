@@ -120,7 +120,8 @@ class Snapshot:
             self.disc = gail.Discriminator(in_dim, self.saved["disc_hidden_dim"], 1e-3, 0.0)
             self.disc.load_state_dict(self.saved["disc"])
         else:
-            self.disc = airl.AIRLDiscriminator(self.obs_dim + self.absorbing, self.act_dim, self.saved["disc_hidden_dim"],
+            hidden = self.saved.get("disc_hidden_dim", self.saved.get("hidden_dim"))  # the key of older airl.py files
+            self.disc = airl.AIRLDiscriminator(self.obs_dim + self.absorbing, self.act_dim, hidden,
                                                self.config["gamma"], self.saved["state_only"], 1e-3, 0.0)
             self.disc.g.load_state_dict(self.saved["g"])
             self.disc.h.load_state_dict(self.saved["h"])

@@ -42,15 +42,14 @@ def source(name: str, **kw):
 
 
 @pytest.mark.parametrize("name", ["gail.py", "airl.py"])
-def test_the_frozen_reward_is_the_saved_one_and_no_reward_parameter_moves(name, tmp_path, monkeypatch):
+def test_the_frozen_reward_is_the_saved_one(name, tmp_path, monkeypatch):
     """The saved reward loaded into another learner's networks gives, on the batches it learns from, the rewards the
-    saved networks give; and updates with the reward frozen change no reward parameter."""
+    saved networks give (that no reward parameter moves in a run is checked end to end below)."""
     module = SCRIPTS[name]
     args, agent, disc, rb = source(name)
     torch.save(module.reward_file(disc, args, OBS, ACT), tmp_path / "reward.pt")
     _, fresh_agent, frozen, _ = source(name, seed=5)  # other weights until the file is loaded
     module.load_reward(str(tmp_path / "reward.pt"), frozen, args, OBS, ACT)
-    before = [p.detach().clone() for p in frozen.parameters()]
     seen = []
     monkeypatch.setattr(fresh_agent, "update", lambda *batch, prefix: seen.append(batch) or {})
     for _ in range(3):
@@ -67,7 +66,6 @@ def test_the_frozen_reward_is_the_saved_one_and_no_reward_parameter_moves(name, 
                 want = airl.sac_reward(disc, airl.Batch(obs, actions, next_obs, None, terminations, None), args.reward,
                                        False, log_pi)
         assert torch.allclose(rewards, want, atol=1e-6) and not torch.any(rewards == 9.0)
-    assert all(torch.equal(a, b) for a, b in zip(before, frozen.parameters()))
 
 
 @pytest.mark.parametrize("name", ["rile.py", "gail.py", "airl.py"])
@@ -83,7 +81,7 @@ def test_a_file_that_does_not_fit_is_refused_in_one_line(name, tmp_path):
     flag, value = {"rile.py": ("termination_remedy", "none"), "gail.py": ("reward_form", "logit"),
                    "airl.py": ("disc_policy_mix", 0.0)}[name]
     load = lambda path, a=args, obs=OBS: module.load_reward(str(tmp_path / path), *trainer, disc, a, obs, ACT)
-    cases = [(lambda: load("missing.pt"), f"no saved reward at '{tmp_path / 'missing.pt'}'; a finished {name} run"),
+    cases = [(lambda: load("missing.pt"), f"reward '{tmp_path / 'missing.pt'}' does not exist; a finished {name} run"),
              (lambda: load("other.pt"), f"was saved by {other}, not {name}"),
              (lambda: load("reward.pt", a=replace(args, env_id="Walker2d-v4")), "was learned on Hopper-v4, not Walker2d-v4"),
              (lambda: load("reward.pt", obs=OBS + 1), f"has obs/act dims {OBS}/{ACT}, Hopper-v4 has {OBS + 1}/{ACT}"),
@@ -126,11 +124,12 @@ def test_a_fresh_learner_against_a_frozen_reward_acts_with_noise_and_is_evaluate
 
 def test_the_frozen_rewards_tool_saves_each_sources_reward_with_its_provenance(run, tmp_path):
     """benchmarks/frozen_rewards.py (here 300 steps of InvertedPendulum-v4, no learning yet): the source's reward.pt,
-    byte for byte, under <out>/<env-id>/<algo>__1.pt, and a README line naming the command and the commit."""
+    byte for byte, under <out>/<env-id>/<algo>__1.pt, a README line naming the command and the commit, and the source
+    run's results file under the tag `source`."""
     out = tmp_path / "rewards"
     (tmp_path / "experts").symlink_to(ROOT / "experts")  # the default demonstrations, as from the repository root
     run("benchmarks/frozen_rewards.py", "--env-id", "InvertedPendulum-v4", "--methods", "gail-paperD-autotune", "airl",
-        "--total-timesteps", "300", "--out", str(out))
+        "--total-timesteps", "300", "--out", str(out), "--results-dir", str(tmp_path / "results"))
     for method in ("gail-paperD-autotune", "airl"):
         source = tmp_path / f"runs/source__InvertedPendulum-v4__{method}__1/reward.pt"
         assert (out / f"InvertedPendulum-v4/{method}__1.pt").read_bytes() == source.read_bytes()
@@ -138,3 +137,6 @@ def test_the_frozen_rewards_tool_saves_each_sources_reward_with_its_provenance(r
     airl_line = next(line for line in lines if line.startswith("- `InvertedPendulum-v4/airl__1.pt`"))
     assert "python airl.py --env-id InvertedPendulum-v4 --seed 1 --total-timesteps 300" in airl_line
     assert " at commit " in airl_line
+    source = json.loads((tmp_path / "results/InvertedPendulum-v4/airl-source__1.json").read_text())  # the source row
+    assert source["finished"] and source["command"].startswith("python airl.py --env-id InvertedPendulum-v4 --seed 1 ")
+    assert (tmp_path / "results/InvertedPendulum-v4/gail-paperD-autotune-source__1.json").exists()

@@ -355,12 +355,12 @@ def test_the_experiments_page_from_results_files_alone(tmp_path):
 
 
 def test_the_covariate_shift_table_against_the_no_noise_score(tmp_path):
-    """Covariate shift: the source row is the seed-1 default run; each noisy row is a fraction of the no-noise row,
-    the paper's Humanoid fraction beside it (RILe 5196 / 5928 at the heavy level); the commands name each method's
-    frozen reward."""
+    """Covariate shift: the source row is the run each frozen reward came from; each noisy row is a fraction of the
+    no-noise row, the paper's Humanoid fraction beside it (RILe 5196 / 5928 at the heavy level); the commands name
+    each method's frozen reward."""
     hopper = tmp_path / "results" / "Hopper-v4"
     hopper.mkdir(parents=True)
-    for algo, seed, score in [("rile-paperD", 1, 0.9), ("rile-paperD", 2, 1.0), ("rile-paperD-shift0", 1, 0.8),
+    for algo, seed, score in [("rile-paperD-source", 1, 0.9), ("rile-paperD", 2, 1.0), ("rile-paperD-shift0", 1, 0.8),
                               ("rile-paperD-shift0", 2, 0.6), ("rile-paperD-shift1.25", 1, 0.35),
                               ("rile-paperD-control-shift1.25", 1, 0.5), ("rile-paperD-control-shift1.25", 2, 0.5)]:
         (hopper / f"{algo}__{seed}.json").write_text(json.dumps(fake_result(algo, seed, [1000.0 * score] * 200, 1000.0)))
