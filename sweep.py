@@ -599,7 +599,7 @@ def noise_section(grouped: dict, results_dir: str, page_dir: str) -> str:
         scores = {key: [last_quarter(r, normalize=True) for r in rs] for key, rs in runs.items()}
         lines = condition_table("demonstrations", methods, conditions, scores, "clean", PAPER_NOISE)
         gap = ["| demonstrations | seeds | rile.py minus the control: last quarter [95% interval] | "
-               + " | ".join(f"D on demonstrations / on the student, {METHODS[m].name}" for m in methods) + " |",
+               + " | ".join(f"{METHODS[m].name}: D on demos / student" for m in methods) + " |",
                "|---" * (len(methods) + 3) + "|"]
         for c, cell in trainer_rows(conditions, scores):
             d = [", ".join(last_quarter_d(r) for r in runs[m, c]) for m in methods]
