@@ -754,6 +754,8 @@ def plot_conditions(title: str, methods: list, conditions: list, scores: dict, p
     for j, c in enumerate(conditions):
         offset = (j - (len(conditions) - 1) / 2) * width
         xs = [(i + offset, scores[m, c]) for i, m in enumerate(methods) if scores[m, c]]
+        if not xs:
+            continue  # not run yet: no bars, no legend entry
         ax.bar([x for x, _ in xs], [np.mean(y) for _, y in xs], width, color=plt.cm.tab10(j), label=c)
         for x, y in xs:
             ax.plot([x] * len(y), y, "k.", ms=4)
