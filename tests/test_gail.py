@@ -102,3 +102,19 @@ def test_end_to_end(run, tmp_path):
     storage = ckpt["replay_buffer"]["storage"]
     assert len(storage) > 500 and (storage[:, 4] == 1).sum() == len(storage) - 500  # one absorbing row per fall
     assert (tmp_path / "runs/g/reward.pt").exists() and (tmp_path / "runs/g/actor.pt").exists()
+    # benchmarks/d_on_actions.py: D on the noisy pairs it trained on, as computed here; then a D blind to actions
+    env = gail.make_env("InvertedPendulum-v4", 1)
+    demos = gail.load_demonstrations(str(ROOT / "experts/InvertedPendulum-v4.npz"), env, 2)
+    noisy = gail.expert_tensors(demos, ckpt["config"]["seed"], "cpu", 0.1, 0.5, -np.inf, np.inf)
+    disc = gail.Discriminator(6, ckpt["config"]["disc_hidden_dim"], 1e-3, 1.0)
+    disc.load_state_dict(ckpt["disc"])
+    d_noisy = disc.prob(torch.cat([noisy["obs"], torch.zeros(len(noisy["obs"]), 1), noisy["actions"]], -1)).mean()
+    read = lambda out, label: float(out.split(label)[1].split()[0])
+    out = run("benchmarks/d_on_actions.py", "runs/g").stdout
+    assert "std 0.5 (unclipped)" in out and read(out, "actions D trained on") == pytest.approx(d_noisy.item(), abs=6e-4)
+    labels = ("actions D trained on", "expert's clean actions", "mean action", "other states", "uniform random actions")
+    assert len({read(out, label) for label in labels}) > 1  # a D that reads actions scores them apart
+    ckpt["disc"]["net.0.weight"][:, -1] = 0.0  # blind to the action column
+    torch.save(ckpt, tmp_path / "runs/g/checkpoint.pt")
+    out = run("benchmarks/d_on_actions.py", "runs/g").stdout
+    assert len({read(out, label) for label in labels}) == 1 and "action columns 0.000" in out
