@@ -591,6 +591,41 @@ def figure(png: str, page_dir: str, title: str, methods: list, conditions: list,
     return f"![{title}]({os.path.relpath(png, page_dir)})\n\n"
 
 
+D_ON_ACTIONS = ("actions D trained on", "the expert's clean actions", "the student's mean action",
+                "uniform random actions")
+
+
+def d_on_actions_table(results_dir: str, env_id: str, methods: list, conditions: list) -> str:
+    """What D reads at the end of each noisy run that benchmarks/d_on_actions.py measured (its --out files under
+    <env-id>/d-on-actions/): D on the demonstrations' states with each kind of action, on the student's states with
+    its own and random actions, and the logit's gradient on action against state columns ('' if none measured)."""
+    rows = []
+    for c in conditions:
+        for m in methods:
+            algo = condition_algo(m, NOISE[c][0])
+            for seed in NOISE[c][2]:
+                path = os.path.join(results_dir, env_id, "d-on-actions", f"{algo}__{seed}.json")
+                if not os.path.isfile(path):
+                    continue
+                with open(path) as f:
+                    p = json.load(f)
+                demos = " / ".join(f"{p['d'][f'demonstrations: {k}']:.2f}" for k in D_ON_ACTIONS)
+                student = " / ".join(f"{p['d'][f'student: {k}']:.2f}" for k in ("its stored actions",
+                                                                                "uniform random actions"))
+                rows.append(f"| {c} | {METHODS[m].name}, seed {seed} | {p['step'] // 1000}k | {demos} | {student} | "
+                            f"{p['grad_action'] / p['grad_state']:.2f} |")
+    if not rows:
+        return ""
+    return ("What D reads at the end of a run (`python benchmarks/d_on_actions.py runs/<run> --out ...`, the command "
+            "in each file under `" + f"benchmarks/results/{env_id}/d-on-actions/" + "`): D on the demonstrations' "
+            "states with the actions it trained on, with the expert's clean actions, with the student's mean action "
+            "and with uniform random actions; on the student's newest states with its own and with random actions; "
+            "and the mean |gradient| of D's logit on an action column over that on a state column (0: D ignores "
+            "actions).\n\n| demonstrations | run | step | D on the demonstrations' states: their actions / clean / "
+            "the student's / random | D on the student's states: its actions / random | gradient, action / state "
+            "|\n|---|---|---|---|---|---|\n" + "\n".join(rows) + "\n\n")
+
+
 def noise_section(grouped: dict, results_dir: str, page_dir: str) -> str:
     parts = []
     for env_id, (methods, conditions) in NOISE_ENVS.items():
@@ -612,6 +647,7 @@ def noise_section(grouped: dict, results_dir: str, page_dir: str) -> str:
                 commands.append(f"{command}  # {c}, {METHODS[m].name}")
         png = os.path.join(results_dir, f"noise-{env_id}.png")
         parts.append(f"### {env_id}\n\n" + "\n".join(lines) + "\n\n" + "\n".join(gap) + "\n\n"
+                     + d_on_actions_table(results_dir, env_id, methods, conditions)
                      + figure(png, page_dir, f"{env_id}: noisy demonstrations", methods, conditions, scores, "clean")
                      + "The commands (the clean row is the default runs of the README's tables):\n\n```bash\n"
                      + "\n".join(commands) + "\n```\n")

@@ -8,9 +8,13 @@ the demonstrations' actions are noised": a D that scores the demonstrations' sta
 rewards the student for reaching the expert's states, and the action noise cannot hurt it.
 
     python benchmarks/d_on_actions.py runs/bench__Hopper-v4__gail-paperD-autotune-act1.25__1 [--recent 20000]
+
+With `--out FILE` the numbers also go to a json file; `sweep.py --report` reads those under
+benchmarks/results/<env-id>/d-on-actions/<algo>__<seed>.json into the noisy-demonstrations tables.
 """
 
 import argparse
+import json
 import os
 import sys
 
@@ -26,6 +30,7 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("run_dir")
     parser.add_argument("--recent", type=int, default=20000, help="how many of the newest replay transitions")
+    parser.add_argument("--out", help="also write the numbers to this json file")
     cli = parser.parse_args()
     torch.set_num_threads(1)
     path = os.path.join(cli.run_dir, "checkpoint.pt")
@@ -70,24 +75,31 @@ def main():
     print(f"{cli.run_dir} ({name}.py) at step {ckpt['step']}: expert actions noised with std "
           f"{args.expert_action_noise}{'' if np.isfinite(clip[0]).all() else ' (unclipped)'}, "
           f"states with std {args.expert_state_noise}; {len(s_demo)} demonstration pairs")
-    rows = [("the demonstrations' states", [
+    rows = [("demonstrations", "the demonstrations' states", [
         ("actions D trained on", trained["actions"], s_demo),
         ("the expert's clean actions", clean["actions"], s_demo),
         ("the student's mean action", student_action, s_demo),
         ("clean actions of other states", clean["actions"][torch.randperm(len(s_demo), generator=g)], s_demo),
         ("uniform random actions", uniform(len(s_demo)), s_demo)]),
-        (f"the student's {len(s_student)} newest living states", [
+        ("student", f"the student's {len(s_student)} newest living states", [
         ("its stored actions", a_student, s_student),
         ("uniform random actions", uniform(len(s_student)), s_student)])]
-    for where, cases in rows:
+    measured = {}
+    for key, where, cases in rows:
         print(f"D on {where}:")
         for label, actions, states in cases:
-            print(f"  with {label:32s} {d(states, actions):.3f}")
+            measured[f"{key}: {label}"] = d(states, actions)
+            print(f"  with {label:32s} {measured[f'{key}: {label}']:.3f}")
     # the logit's gradient per standardised input unit, averaged over the demonstrations and the student's pairs
     x = torch.cat([torch.cat([s_demo, trained["actions"]], -1), torch.cat([s_student, a_student], -1)])
     z = ((x - disc.shift) / disc.scale).requires_grad_(True)
     grad = torch.autograd.grad(disc.net(z).sum(), z)[0].abs()
     per_state, per_action = grad[:, :obs_dim].mean().item(), grad[:, aug_dim:].mean().item()
+    if cli.out:
+        os.makedirs(os.path.dirname(os.path.abspath(cli.out)), exist_ok=True)
+        with open(cli.out, "w") as f:
+            json.dump({"run": cli.run_dir, "step": ckpt["step"], "d": measured, "grad_state": per_state,
+                       "grad_action": per_action, "command": " ".join(["python", *sys.argv])}, f, indent=1)
     ratio = f" (action/state {per_action / per_state:.2f})" if per_state > 0 else ""
     print(f"|d logit / d input| per standardised unit: state columns {per_state:.3f}, action columns "
           f"{per_action:.3f}{ratio}")

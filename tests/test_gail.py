@@ -8,6 +8,7 @@ import pytest
 import torch
 
 import gail
+import sweep
 from conftest import ROOT
 
 
@@ -110,7 +111,10 @@ def test_end_to_end(run, tmp_path):
     disc.load_state_dict(ckpt["disc"])
     d_noisy = disc.prob(torch.cat([noisy["obs"], torch.zeros(len(noisy["obs"]), 1), noisy["actions"]], -1)).mean()
     read = lambda out, label: float(out.split(label)[1].split()[0])
-    out = run("benchmarks/d_on_actions.py", "runs/g").stdout
+    out = run("benchmarks/d_on_actions.py", "runs/g", "--out", "probe.json").stdout
+    probe = json.loads((tmp_path / "probe.json").read_text())  # what sweep.py --report reads
+    assert {f"demonstrations: {k}" for k in sweep.D_ON_ACTIONS} < set(probe["d"]) and probe["step"] == 500
+    assert probe["d"]["demonstrations: actions D trained on"] == pytest.approx(d_noisy.item(), abs=1e-6)
     assert "std 0.5 (unclipped)" in out and read(out, "actions D trained on") == pytest.approx(d_noisy.item(), abs=6e-4)
     labels = ("actions D trained on", "expert's clean actions", "mean action", "other states", "uniform random actions")
     assert len({read(out, label) for label in labels}) > 1  # a D that reads actions scores them apart

@@ -330,11 +330,20 @@ def test_the_experiments_page_from_results_files_alone(tmp_path):
         r["reward_measures"] = [{"step": 160_000, "d_demos": 0.9, "d_student": 0.1},
                                 {"step": 200_000, "d_demos": 0.7, "d_student": 0.3}]
         (hopper / f"{algo}__{seed}.json").write_text(json.dumps(r))
+    probe = {"step": 200_000, "grad_state": 0.2, "grad_action": 0.05, "command": "python benchmarks/d_on_actions.py r",
+             "d": {"demonstrations: actions D trained on": 0.8, "demonstrations: the expert's clean actions": 0.79,
+                   "demonstrations: the student's mean action": 0.78, "demonstrations: uniform random actions": 0.77,
+                   "demonstrations: clean actions of other states": 0.5, "student: its stored actions": 0.3,
+                   "student: uniform random actions": 0.29}}  # benchmarks/d_on_actions.py --out, in its folder
+    (hopper / "d-on-actions").mkdir()
+    (hopper / "d-on-actions" / "rile-paperD-act1.25__2.json").write_text(json.dumps(probe))
     readme = tmp_path / "README.md"
     readme.write_text("# x\n")
     sweep.report(str(tmp_path / "results"), readme=str(readme))
     page = (tmp_path / "docs" / "experiments.md").read_text()
     table = page.split("### Hopper-v4")[1]
+    assert "| actions 1.25 | rile.py, seed 2 | 200k | 0.80 / 0.79 / 0.78 / 0.77 | 0.30 / 0.29 | 0.25 |" in table
+    assert "d-on-actions" not in page.split("### HalfCheetah-v4")[1].split("## Covariate")[0]  # none measured there
     # rile.py: clean (0.9 + 1.0) / 2 = 0.95; actions 1.25: (0.5 + 0.45) / 2 = 0.475, 0.50 of clean; paper 5154 / 5928
     assert "| clean | 0.90, 1.00: **0.95** | 1.00: **1.00** | not yet run | not yet run |" in table
     assert ("| actions 1.25 | 0.50, 0.45: **0.47** = 0.50 of clean (paper 0.87) | 0.80: **0.80** = 0.80 of clean | "
