@@ -731,7 +731,8 @@ student leaves little to learn from), as the mean over the last quarter of the r
 The paper does not say whether its noisy actions stayed in the box; unclipped ones outside it would let D tell the
 demonstrations from any policy at once, so the last Hopper-v4 row runs rile.py and gail.py (seed 1) with
 `--no-expert-noise-clip`. Other levels, or iqlearn.py and bc.py (which take no noise flags), are not run: the same
-sweep with another `--expert-action-noise`/`--expert-state-noise` and `--tag` adds them.
+sweep with another `--expert-action-noise`/`--expert-state-noise` and `--tag` adds them. What the discriminator did
+with the noisy demonstrations, over training: [noisy-demonstrations.md](noisy-demonstrations.md).
 """
 
 SHIFT_HEAD = """## Covariate shift: a frozen reward, a fresh student with noisy actions
