@@ -3,9 +3,11 @@ rile.py or gail.py run (the control too): D(s, a) on the demonstrations' states 
 (noisy under --expert-action-noise), with the expert's clean actions, with the student's mean action, with the
 demonstrations' actions of other states (shuffled), and with uniform random actions; then on the student's newest
 replay states with its stored actions and with uniform random ones. The gradient of D's logit, split into its
-state and its action columns, says the same per unit of input. Answers "why does a method hold up (or not) when
-the demonstrations' actions are noised": a D that scores the demonstrations' states alike whatever the action
-rewards the student for reaching the expert's states, and the action noise cannot hurt it.
+state and its action columns, says the same per unit of input; the share of action components at the box's edge
+and their spread compare the actions themselves (the demonstrations D trained on, the clean ones, the student's).
+Answers "why does a method hold up (or not) when the demonstrations' actions are noised": a D that scores the
+demonstrations' states alike whatever the action rewards the student for reaching the expert's states, and the
+action noise cannot hurt it.
 
     python benchmarks/d_on_actions.py runs/bench__Hopper-v4__gail-paperD-autotune-act1.25__1 [--recent 20000]
 
@@ -95,11 +97,22 @@ def main():
     z = ((x - disc.shift) / disc.scale).requires_grad_(True)
     grad = torch.autograd.grad(disc.net(z).sum(), z)[0].abs()
     per_state, per_action = grad[:, :obs_dim].mean().item(), grad[:, aug_dim:].mean().item()
+    # how the actions themselves differ: the share of components at the box's edge (beyond 0.95 of its half-width)
+    # and the spread per component, of the demonstrations D trained on, the clean ones and the student's stored ones
+    mid, half = torch.as_tensor((high + low) / 2), torch.as_tensor((high - low) / 2)
+    kinds = {"demonstrations D trained on": trained["actions"], "clean demonstrations": clean["actions"],
+             "the student's stored": a_student}
+    edge = {k: ((a - mid).abs() > 0.95 * half).float().mean().item() for k, a in kinds.items()}
+    spread = {k: a.std(0).mean().item() for k, a in kinds.items()}
+    alpha = student.log_alpha.exp().item()
+    print("action components at the box's edge / spread per component: "
+          + ", ".join(f"{k} {edge[k]:.2f} / {spread[k]:.2f}" for k in kinds) + f"; the student's temperature {alpha:.3g}")
     if cli.out:
         os.makedirs(os.path.dirname(os.path.abspath(cli.out)), exist_ok=True)
         with open(cli.out, "w") as f:
             json.dump({"run": cli.run_dir, "step": ckpt["step"], "d": measured, "grad_state": per_state,
-                       "grad_action": per_action, "command": " ".join(["python", *sys.argv])}, f, indent=1)
+                       "grad_action": per_action, "edge": edge, "spread": spread,
+                       "alpha": alpha, "command": " ".join(["python", *sys.argv])}, f, indent=1)
     ratio = f" (action/state {per_action / per_state:.2f})" if per_state > 0 else ""
     print(f"|d logit / d input| per standardised unit: state columns {per_state:.3f}, action columns "
           f"{per_action:.3f}{ratio}")
