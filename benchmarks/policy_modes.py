@@ -1,4 +1,4 @@
-"""A saved policy with its mean action and with sampled actions: returns, episode lengths and falls.
+"""A saved policy with its mean action and with sampled actions: returns, episode lengths, falls and turnovers.
 
 Every script evaluates the mean action; its student was trained, and judged by its discriminator, on sampled ones.
 Where a run's evaluations swing while its training episodes hold, this tells which policy falls and where.
@@ -6,6 +6,8 @@ Where a run's evaluations swing while its training episodes hold, this tells whi
     python benchmarks/policy_modes.py runs/bench__Walker2d-v4__rile-paperD__1/actor.pt --episodes 10
 
 Episode i starts from reset(seed=seed + i); the default seed is the one the scripts' evaluations use for seed 1.
+HalfCheetah never terminates: a cheetah that turns onto its back (torso pitch beyond 90 degrees) stays there and
+scores near nothing, so for it the step of each turnover is shown too.
 """
 
 import argparse
@@ -20,17 +22,27 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 import rile  # noqa: E402  (the actor and env blocks are the same in every script)
 
 
+TORSO_PITCH = {"HalfCheetah-v4": 1, "HalfCheetah-v5": 1}  # the observation's torso pitch (radians), where it can turn
+
+
+def turned_over(pitch: np.ndarray):
+    """The first step (counted from 1) after which |torso pitch| exceeds pi/2 (on its back), or None."""
+    over = np.flatnonzero(np.abs(pitch) > np.pi / 2)
+    return int(over[0]) + 1 if len(over) else None
+
+
 def rollouts(actor: rile.Actor, env_id: str, episodes: int, seed: int, deterministic: bool):
-    """(return, length, terminated) of each episode."""
+    """(return, length, terminated, first step on its back or None) of each episode."""
     env, out = rile.make_env(env_id, seed), []
     torch.manual_seed(seed)  # the sampled actions' noise
     for i in range(episodes):
         obs, _ = env.reset(seed=seed + i)
-        ret, length, terminated, truncated = 0.0, 0, False, False
+        ret, length, terminated, truncated, pitch = 0.0, 0, False, False, []
         while not (terminated or truncated):
             obs, reward, terminated, truncated, _ = env.step(actor.act(obs, deterministic=deterministic))
             ret, length = ret + float(reward), length + 1
-        out.append((ret, length, terminated))
+            pitch.append(obs[TORSO_PITCH[env_id]] if env_id in TORSO_PITCH else 0.0)
+        out.append((ret, length, terminated, turned_over(np.array(pitch))))
     env.close()
     return out
 
@@ -58,6 +70,10 @@ def main():
         print(f"{name:11s}: return {rets.mean():8.1f} +- {rets.std():6.1f} (min {rets.min():.0f}, max {rets.max():.0f}), "
               f"return per step {rets.sum() / lens.sum():.2f}, {len(falls)} of {len(eps)} terminated"
               + (f" at steps {sorted(falls)}" if falls else ""))
+        if saved["env_id"] in TORSO_PITCH:
+            over = [e[3] for e in eps if e[3] is not None]
+            print(f"{'':13s}{len(over)} of {len(eps)} turned onto its back"
+                  + (f", first at steps {sorted(over)}" if over else ""))
 
 
 if __name__ == "__main__":

@@ -14,7 +14,7 @@ import torch.nn as nn
 import airl
 import gail
 import rile
-from benchmarks import reward_dynamics
+from benchmarks import policy_modes, reward_dynamics
 from conftest import ROOT
 
 OBS, ACT = 3, 2
@@ -50,6 +50,19 @@ def recorder(seen: dict, name: str):
 
 
 # ---------------------------------------------------------------- rewards
+
+
+def test_policy_modes_finds_a_halfcheetah_on_its_back():
+    # the step after which |torso pitch| first exceeds pi/2, counted from 1; none while it stays upright
+    assert policy_modes.turned_over(np.array([0.0, 1.0, -1.6, 0.2])) == 3
+    assert policy_modes.turned_over(np.array([3.2])) == 1 and policy_modes.turned_over(np.array([0.1, -1.5])) is None
+    # the index it reads is the torso's pitch: set the root's rotation and read it back from the observation
+    env = rile.make_env("HalfCheetah-v4", 0)
+    env.reset(seed=0)
+    qpos, qvel = env.unwrapped.data.qpos.copy(), env.unwrapped.data.qvel.copy()
+    qpos[2] = 3.0  # rootx, rootz, rooty: the pitch
+    env.unwrapped.set_state(qpos, qvel)
+    assert env.unwrapped._get_obs()[policy_modes.TORSO_PITCH["HalfCheetah-v4"]] == pytest.approx(3.0)
 
 
 def test_trainer_rewards_against_hand_computed_values():
