@@ -491,8 +491,10 @@ NOISE = {"clean": ("", "", (1, 2, 3, 4)), "actions 0.5": ("act0.5", "--expert-ac
          "actions 1.25": ("act1.25", "--expert-action-noise 1.25", (1, 2)),
          "states 0.5": ("state0.5", "--expert-state-noise 0.5", (1, 2)),
          "actions 1.25 unclipped": ("act1.25-noclip", "--expert-action-noise 1.25 --no-expert-noise-clip", (1,)),
+         "clean, D without gradient penalty": ("gp0", "--disc-gp 0", (1,)),
          "actions 1.25, D without gradient penalty": ("gp0-act1.25", "--disc-gp 0 --expert-action-noise 1.25", (1,))}
 ONLY = {"actions 1.25 unclipped": ("rile-paperD", "gail-paperD-autotune"),  # conditions that not every method runs
+        "clean, D without gradient penalty": ("gail-paperD-autotune",),
         "actions 1.25, D without gradient penalty": ("gail-paperD-autotune",)}
 NOISE_ENVS = {  # env -> (methods, conditions)
     "Hopper-v4": (["rile-paperD", "rile-paperD-control", "gail-paperD-autotune", "airl"], list(NOISE)),
@@ -732,9 +734,10 @@ what the trainer adds under each condition, and whether D saturates (D near 1 on
 student leaves little to learn from), as the mean over the last quarter of the reward measures taken every 10k steps.
 The paper does not say whether its noisy actions stayed in the box; unclipped ones outside it would let D tell the
 demonstrations from any policy at once, so the row "actions 1.25 unclipped" runs rile.py and gail.py (seed 1) with
-`--no-expert-noise-clip`. gail.py's D has the paper's gradient penalty (weight 1, one-centred); the row "D without
-gradient penalty" (`--disc-gp 0`, seed 1, its fraction still of the clean runs with the penalty) tests whether the
-penalty is what keeps gail.py's D from the confidence that would collapse its student. Other levels, or iqlearn.py and
+`--no-expert-noise-clip`. gail.py's D has the paper's gradient penalty (weight 1, one-centred); the two rows "D
+without gradient penalty" (`--disc-gp 0`, seed 1, their fractions of the clean runs with the penalty), on clean and on
+noisy demonstrations, test whether the penalty is what keeps gail.py's D from the confidence that would collapse its
+student, and whether dropping it costs under noise more than on clean demonstrations. Other levels, or iqlearn.py and
 bc.py (which take no noise flags), are not run: the same sweep with another `--expert-action-noise`/
 `--expert-state-noise` and `--tag` adds them. What the discriminator did with the noisy demonstrations, over training:
 [noisy-demonstrations.md](noisy-demonstrations.md).
