@@ -616,18 +616,22 @@ def d_on_actions_table(results_dir: str, env_id: str, methods: list, conditions:
                 demos = " / ".join(f"{p['d'][f'demonstrations: {k}']:.2f}" for k in D_ON_ACTIONS)
                 student = " / ".join(f"{p['d'][f'student: {k}']:.2f}" for k in ("its stored actions",
                                                                                 "uniform random actions"))
-                rows.append(f"| {c} | {METHODS[m].name}, seed {seed} | {p['step'] // 1000}k | {demos} | {student} | "
-                            f"{p['grad_action'] / p['grad_state']:.2f} |")
+                clean = p["d"].get("clean: the expert's clean actions")  # absent from probes before it measured it
+                clean = "-" if clean is None else f"{clean:.2f}"
+                rows.append(f"| {c} | {METHODS[m].name}, seed {seed} | {p['step'] // 1000}k | {demos} | {clean} | "
+                            f"{student} | {p['grad_action'] / p['grad_state']:.2f} |")
     if not rows:
         return ""
     return ("What D reads at the end of a run (`python benchmarks/d_on_actions.py runs/<run> --out ...`, the command "
             "in each file under `" + f"benchmarks/results/{env_id}/d-on-actions/" + "`): D on the demonstrations' "
             "states with the actions it trained on, with the expert's clean actions, with the student's mean action "
-            "and with uniform random actions; on the student's newest states with its own and with random actions; "
-            "and the mean |gradient| of D's logit on an action column over that on a state column (0: D ignores "
-            "actions).\n\n| demonstrations | run | step | D on the demonstrations' states: their actions / clean / "
-            "the student's / random | D on the student's states: its actions / random | gradient, action / state "
-            "|\n|---|---|---|---|---|---|\n" + "\n".join(rows) + "\n\n")
+            "and with uniform random actions; on the expert's clean states and actions (under state noise, the states "
+            "the student should reach; otherwise the same as clean actions); on the student's newest states with its "
+            "own and with random actions; and the mean |gradient| of D's logit on an action column over that on a "
+            "state column (0: D ignores actions).\n\n| demonstrations | run | step | D on the demonstrations' states: "
+            "their actions / clean / the student's / random | D on the clean demonstrations | D on the student's "
+            "states: its actions / random | gradient, action / state |\n|---|---|---|---|---|---|---|\n"
+            + "\n".join(rows) + "\n\n")
 
 
 def noise_section(grouped: dict, results_dir: str, page_dir: str) -> str:

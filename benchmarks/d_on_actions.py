@@ -1,8 +1,10 @@
 """How much does a run's discriminator read the actions, and how much the states? Read from the checkpoint of a
 rile.py or gail.py run (the control too): D(s, a) on the demonstrations' states with the actions D was trained on
 (noisy under --expert-action-noise), with the expert's clean actions, with the student's mean action, with the
-demonstrations' actions of other states (shuffled), and with uniform random actions; then on the student's newest
-replay states with its stored actions and with uniform random ones. The gradient of D's logit, split into its
+demonstrations' actions of other states (shuffled), and with uniform random actions; on the expert's clean states
+with its clean actions (under --expert-state-noise: does D still score the states the student should reach as the
+expert's, or only the noisy ones it trained on); then on the student's newest replay states with its stored actions
+and with uniform random ones. The gradient of D's logit, split into its
 state and its action columns, says the same per unit of input; the share of action components at the box's edge
 and their spread compare the actions themselves (the demonstrations D trained on, the clean ones, the student's).
 Answers "why does a method hold up (or not) when the demonstrations' actions are noised": a D that scores the
@@ -83,6 +85,7 @@ def main():
         ("the student's mean action", student_action, s_demo),
         ("clean actions of other states", clean["actions"][torch.randperm(len(s_demo), generator=g)], s_demo),
         ("uniform random actions", uniform(len(s_demo)), s_demo)]),
+        ("clean", "the expert's clean states", [("the expert's clean actions", clean["actions"], pad(clean["obs"]))]),
         ("student", f"the student's {len(s_student)} newest living states", [
         ("its stored actions", a_student, s_student),
         ("uniform random actions", uniform(len(s_student)), s_student)])]

@@ -115,9 +115,12 @@ def test_end_to_end(run, tmp_path):
     probe = json.loads((tmp_path / "probe.json").read_text())  # what sweep.py --report reads
     assert {f"demonstrations: {k}" for k in sweep.D_ON_ACTIONS} < set(probe["d"]) and probe["step"] == 500
     assert probe["d"]["demonstrations: actions D trained on"] == pytest.approx(d_noisy.item(), abs=1e-6)
+    clean = gail.expert_tensors(demos, 1, "cpu")  # the expert's clean states with its clean actions
+    d_clean = disc.prob(torch.cat([clean["obs"], torch.zeros(len(clean["obs"]), 1), clean["actions"]], -1)).mean()
+    assert probe["d"]["clean: the expert's clean actions"] == pytest.approx(d_clean.item(), abs=1e-6) != d_noisy.item()
     edge = lambda a: (a.abs() > 0.95 * 3.0).float().mean().item()  # InvertedPendulum's box: [-3, 3]
     assert probe["edge"]["demonstrations D trained on"] == pytest.approx(edge(noisy["actions"]))
-    assert probe["edge"]["clean demonstrations"] == pytest.approx(edge(gail.expert_tensors(demos, 1, "cpu")["actions"]))
+    assert probe["edge"]["clean demonstrations"] == pytest.approx(edge(clean["actions"]))
     assert probe["spread"]["demonstrations D trained on"] == pytest.approx(noisy["actions"].std(0).mean().item())
     assert "std 0.5 (unclipped)" in out and read(out, "actions D trained on") == pytest.approx(d_noisy.item(), abs=6e-4)
     labels = ("actions D trained on", "expert's clean actions", "mean action", "other states", "uniform random actions")
