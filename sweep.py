@@ -616,10 +616,9 @@ def d_on_actions_table(results_dir: str, env_id: str, methods: list, conditions:
                 demos = " / ".join(f"{p['d'][f'demonstrations: {k}']:.2f}" for k in D_ON_ACTIONS)
                 student = " / ".join(f"{p['d'][f'student: {k}']:.2f}" for k in ("its stored actions",
                                                                                 "uniform random actions"))
-                clean = p["d"].get("clean: the expert's clean actions")  # absent from probes before it measured it
-                clean = "-" if clean is None else f"{clean:.2f}"
-                rows.append(f"| {c} | {METHODS[m].name}, seed {seed} | {p['step'] // 1000}k | {demos} | {clean} | "
-                            f"{student} | {p['grad_action'] / p['grad_state']:.2f} |")
+                clean = p["d"]["clean: the expert's clean actions"]
+                rows.append(f"| {c} | {METHODS[m].name}, seed {seed} | {p['step'] // 1000}k | {demos} | "
+                            f"{clean:.2f} | {student} | {p['grad_action'] / p['grad_state']:.2f} |")
     if not rows:
         return ""
     return ("What D reads at the end of a run (`python benchmarks/d_on_actions.py runs/<run> --out ...`, the command "

@@ -4,9 +4,9 @@ rile.py or gail.py run (the control too): D(s, a) on the demonstrations' states 
 demonstrations' actions of other states (shuffled), and with uniform random actions; on the expert's clean states
 with its clean actions (under --expert-state-noise: does D still score the states the student should reach as the
 expert's, or only the noisy ones it trained on); then on the student's newest replay states with its stored actions
-and with uniform random ones. The gradient of D's logit, split into its
-state and its action columns, says the same per unit of input; the share of action components at the box's edge
-and their spread compare the actions themselves (the demonstrations D trained on, the clean ones, the student's).
+and with uniform random ones. The gradient of D's logit, split into its state and its action columns, says the same
+per unit of input; the share of action components at the box's edge and their spread compare the actions themselves
+(the demonstrations D trained on, the clean ones, the student's).
 Answers "why does a method hold up (or not) when the demonstrations' actions are noised": a D that scores the
 demonstrations' states alike whatever the action rewards the student for reaching the expert's states, and the
 action noise cannot hurt it.

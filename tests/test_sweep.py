@@ -334,17 +334,18 @@ def test_the_experiments_page_from_results_files_alone(tmp_path):
              "d": {"demonstrations: actions D trained on": 0.8, "demonstrations: the expert's clean actions": 0.79,
                    "demonstrations: the student's mean action": 0.78, "demonstrations: uniform random actions": 0.77,
                    "demonstrations: clean actions of other states": 0.5, "student: its stored actions": 0.3,
-                   "student: uniform random actions": 0.29}}  # benchmarks/d_on_actions.py --out, in its folder
+                   "student: uniform random actions": 0.29,
+                   "clean: the expert's clean actions": 0.76}}  # benchmarks/d_on_actions.py --out, in its folder
     (hopper / "d-on-actions").mkdir()
     (hopper / "d-on-actions" / "rile-paperD-act1.25__2.json").write_text(json.dumps(probe))
-    probe["d"]["clean: the expert's clean actions"] = 0.4  # D on the clean states, which newer probes measure
+    probe["d"]["clean: the expert's clean actions"] = 0.4  # under state noise D on the clean states differs
     (hopper / "d-on-actions" / "rile-paperD-state0.5__1.json").write_text(json.dumps(probe))
     readme = tmp_path / "README.md"
     readme.write_text("# x\n")
     sweep.report(str(tmp_path / "results"), readme=str(readme))
     page = (tmp_path / "docs" / "experiments.md").read_text()
     table = page.split("### Hopper-v4")[1]
-    assert "| actions 1.25 | rile.py, seed 2 | 200k | 0.80 / 0.79 / 0.78 / 0.77 | - | 0.30 / 0.29 | 0.25 |" in table
+    assert "| actions 1.25 | rile.py, seed 2 | 200k | 0.80 / 0.79 / 0.78 / 0.77 | 0.76 | 0.30 / 0.29 | 0.25 |" in table
     assert "| states 0.5 | rile.py, seed 1 | 200k | 0.80 / 0.79 / 0.78 / 0.77 | 0.40 | 0.30 / 0.29 | 0.25 |" in table
     assert "d-on-actions" not in page.split("### HalfCheetah-v4")[1].split("## Covariate")[0]  # none measured there
     # rile.py: clean (0.9 + 1.0) / 2 = 0.95; actions 1.25: (0.5 + 0.45) / 2 = 0.475, 0.50 of clean; paper 5154 / 5928
