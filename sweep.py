@@ -492,10 +492,12 @@ NOISE = {"clean": ("", "", (1, 2, 3, 4)), "actions 0.5": ("act0.5", "--expert-ac
          "states 0.5": ("state0.5", "--expert-state-noise 0.5", (1, 2)),
          "actions 1.25 unclipped": ("act1.25-noclip", "--expert-action-noise 1.25 --no-expert-noise-clip", (1,)),
          "clean, D without gradient penalty": ("gp0", "--disc-gp 0", (1,)),
-         "actions 1.25, D without gradient penalty": ("gp0-act1.25", "--disc-gp 0 --expert-action-noise 1.25", (1,))}
+         "actions 1.25, D without gradient penalty": ("gp0-act1.25", "--disc-gp 0 --expert-action-noise 1.25", (1,)),
+         "states 0.5, D without gradient penalty": ("gp0-state0.5", "--disc-gp 0 --expert-state-noise 0.5", (1,))}
 ONLY = {"actions 1.25 unclipped": ("rile-paperD", "gail-paperD-autotune"),  # conditions that not every method runs
         "clean, D without gradient penalty": ("gail-paperD-autotune",),
-        "actions 1.25, D without gradient penalty": ("gail-paperD-autotune",)}
+        "actions 1.25, D without gradient penalty": ("gail-paperD-autotune",),
+        "states 0.5, D without gradient penalty": ("gail-paperD-autotune",)}
 NOISE_ENVS = {  # env -> (methods, conditions)
     "Hopper-v4": (["rile-paperD", "rile-paperD-control", "gail-paperD-autotune", "airl"], list(NOISE)),
     "HalfCheetah-v4": (["rile-paperD", "rile-paperD-control", "gail-paperD-autotune"], ["clean", "actions 1.25",
