@@ -739,10 +739,11 @@ what the trainer adds under each condition, and whether D saturates (D near 1 on
 student leaves little to learn from), as the mean over the last quarter of the reward measures taken every 10k steps.
 The paper does not say whether its noisy actions stayed in the box; unclipped ones outside it would let D tell the
 demonstrations from any policy at once, so the row "actions 1.25 unclipped" runs rile.py and gail.py (seed 1) with
-`--no-expert-noise-clip`. gail.py's D has the paper's gradient penalty (weight 1, one-centred); the two rows "D
-without gradient penalty" (`--disc-gp 0`, seed 1, their fractions of the clean runs with the penalty), on clean and on
-noisy demonstrations, test whether the penalty is what keeps gail.py's D from the confidence that would collapse its
-student, and whether dropping it costs under noise more than on clean demonstrations. Other levels, or iqlearn.py and
+`--no-expert-noise-clip`. gail.py's D has the paper's gradient penalty (weight 1, one-centred); the rows "D
+without gradient penalty" (`--disc-gp 0`, seed 1, their fractions of the clean runs with the penalty), on clean, on
+action-noisy and on state-noisy demonstrations, test whether the penalty is what keeps gail.py's D from the
+confidence that would collapse its student, and whether dropping it costs under noise more than on clean
+demonstrations. Other levels, or iqlearn.py and
 bc.py (which take no noise flags), are not run: the same sweep with another `--expert-action-noise`/
 `--expert-state-noise` and `--tag` adds them. What the discriminator did with the noisy demonstrations, over training:
 [noisy-demonstrations.md](noisy-demonstrations.md).
