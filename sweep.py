@@ -743,10 +743,9 @@ demonstrations from any policy at once, so the row "actions 1.25 unclipped" runs
 without gradient penalty" (`--disc-gp 0`, seed 1, their fractions of the clean runs with the penalty), on clean, on
 action-noisy and on state-noisy demonstrations, test whether the penalty is what keeps gail.py's D from the
 confidence that would collapse its student, and whether dropping it costs under noise more than on clean
-demonstrations. Other levels, or iqlearn.py and
-bc.py (which take no noise flags), are not run: the same sweep with another `--expert-action-noise`/
-`--expert-state-noise` and `--tag` adds them. What the discriminator did with the noisy demonstrations, over training:
-[noisy-demonstrations.md](noisy-demonstrations.md).
+demonstrations. Other levels, or iqlearn.py and bc.py (which take no noise flags), are not run: the same sweep with
+another `--expert-action-noise`/`--expert-state-noise` and `--tag` adds them. What the discriminator did with the
+noisy demonstrations, over training: [noisy-demonstrations.md](noisy-demonstrations.md).
 """
 
 SHIFT_HEAD = """## Covariate shift: a frozen reward, a fresh student with noisy actions
