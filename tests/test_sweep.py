@@ -152,6 +152,7 @@ def test_last_quarter_averages_the_evaluations_after_three_quarters_of_the_steps
     r = fake_result("raw", 1, [5.0, 7.0, 9.0, 11.0, 13.0])  # no expert return: returns, not normalized
     assert sweep.last_quarter(r, normalize=False) == 12.0  # 4k and 5k, after 3.75k: (11 + 13) / 2
     assert sweep.last_quarter(r, normalize=False, worst=True) == 11.0  # the lower of the two
+    assert sweep.last_quarter(r, normalize=False, after=0.5) == 11.0  # 3k, 4k and 5k, after 2.5k: (9 + 11 + 13) / 3
 
 
 def test_normalized_score_is_zero_for_random_and_one_for_the_expert():
@@ -326,7 +327,10 @@ def test_the_experiments_page_from_results_files_alone(tmp_path):
                               ("rile-paperD-act1.25", 1, 0.5), ("rile-paperD-act1.25", 2, 0.45),
                               ("rile-paperD-control-act1.25", 1, 0.8), ("rile-paperD-tr-naive", 1, 0.3),
                               ("rile-paperD-act1.25-noclip", 1, 0.19)]:
-        r = fake_result(algo, seed, [1000.0 * score] * 200, 1000.0)  # 200 evaluations, 1k apart: a 200k run
+        curve = [1000.0 * score] * 200  # 200 evaluations, 1k apart: a 200k run
+        if algo == "rile-paperD-control-act1.25":
+            curve[100:150] = [300.0] * 50  # a fall at 101k-150k: in the second half, not in the last quarter
+        r = fake_result(algo, seed, curve, 1000.0)
         r["reward_measures"] = [{"step": 160_000, "d_demos": 0.9, "d_student": 0.1},
                                 {"step": 200_000, "d_demos": 0.7, "d_student": 0.3}]
         (hopper / f"{algo}__{seed}.json").write_text(json.dumps(r))
@@ -352,8 +356,10 @@ def test_the_experiments_page_from_results_files_alone(tmp_path):
     assert "| clean | 0.90, 1.00: **0.95** | 1.00: **1.00** | not yet run | not yet run |" in table
     assert ("| actions 1.25 | 0.50, 0.45: **0.47** = 0.50 of clean (paper 0.87) | 0.80: **0.80** = 0.80 of clean | "
             "not yet run (paper 0.16) | not yet run (paper 0.82) |") in table
-    # rile.py minus the control: 0.475 - 0.8; D: the mean of the last quarter's measures, (0.9 + 0.7) / 2
-    assert "| actions 1.25 | 2 and 1 | -0.325 [-0.350, -0.300] | 0.80 / 0.20, 0.80 / 0.20 | 0.80 / 0.20 | - |" in table
+    # rile.py minus the control: last quarter 0.475 - 0.8; second half 0.475 - (50 x 0.3 + 50 x 0.8) / 100 = -0.075,
+    # rile.py's two seeds resampled give 0.45 to 0.5; D: the mean of the last quarter's measures, (0.9 + 0.7) / 2
+    assert ("| actions 1.25 | 2 and 1 | -0.325 [-0.350, -0.300] | -0.075 [-0.100, -0.050] | 0.80 / 0.20, 0.80 / 0.20 | "
+            "0.80 / 0.20 | - |") in table
     # a condition only rile.py and gail.py run: '-' for the others, and commands for those two only
     assert "| actions 1.25 unclipped | 0.19: **0.19** = 0.20 of clean | - | not yet run | - |" in table
     assert "--no-expert-noise-clip  # actions 1.25 unclipped, gail.py" in table and "unclipped, airl.py" not in table
@@ -384,7 +390,7 @@ def test_the_covariate_shift_table_against_the_no_noise_score(tmp_path):
     assert "| source run | 0.90: **0.90** | not yet run | not yet run | not yet run |" in shift  # seed 1 only
     assert "| no noise | 0.80, 0.60: **0.70** | not yet run |" in shift
     assert "| noise 1.25 | 0.35: **0.35** = 0.50 of no noise (paper 0.88) | 0.50, 0.50: **0.50** | " in shift
-    assert "| noise 1.25 | 1 and 2 | -0.150 [-0.150, -0.150] |" in shift
+    assert "| noise 1.25 | 1 and 2 | -0.150 [-0.150, -0.150] | -0.150 [-0.150, -0.150] |" in shift
     assert ("--tag airl-shift0.5" not in shift and "--tag shift0.5 --reward-from benchmarks/rewards/Hopper-v4/airl__1.pt "
             "--student-action-noise 0.5  # noise 0.5, airl.py") in shift
     assert (tmp_path / "results" / "shift-Hopper-v4.png").exists()
