@@ -498,7 +498,7 @@ NOISE = {"clean": ("", "", (1, 2, 3, 4)), "actions 0.5": ("act0.5", "--expert-ac
 ONLY = {"actions 1.25 unclipped": ("rile-paperD", "gail-paperD-autotune"),  # conditions that not every method runs
         "clean, D without gradient penalty": ("gail-paperD-autotune",),
         "actions 1.25, D without gradient penalty": ("gail-paperD-autotune",),
-        "states 0.5, D without gradient penalty": ("gail-paperD-autotune",)}
+        "states 0.5, D without gradient penalty": ("rile-paperD", "rile-paperD-control", "gail-paperD-autotune")}
 NOISE_ENVS = {  # env -> (methods, conditions)
     "Hopper-v4": (["rile-paperD", "rile-paperD-control", "gail-paperD-autotune", "airl"], list(NOISE)),
     "HalfCheetah-v4": (["rile-paperD", "rile-paperD-control", "gail-paperD-autotune"], ["clean", "actions 1.25",
@@ -755,7 +755,8 @@ demonstrations from any policy at once, so the row "actions 1.25 unclipped" runs
 without gradient penalty" (`--disc-gp 0`, seed 1, their fractions of the clean runs with the penalty), on clean, on
 action-noisy and on state-noisy demonstrations, test whether the penalty is what keeps gail.py's D from the
 confidence that would collapse its student, and whether dropping it costs under noise more than on clean
-demonstrations. Other levels, or iqlearn.py and bc.py (which take no noise flags), are not run: the same sweep with
+demonstrations; on state-noisy demonstrations, where gail.py without it collapsed, rile.py and the control run
+without it too, to see whether the trainer holds where v(D) does not. Other levels, or iqlearn.py and bc.py (which take no noise flags), are not run: the same sweep with
 another `--expert-action-noise`/`--expert-state-noise` and `--tag` adds them. What the discriminator did with the
 noisy demonstrations, over training: [noisy-demonstrations.md](noisy-demonstrations.md).
 """
