@@ -756,8 +756,9 @@ without gradient penalty" (`--disc-gp 0`, seed 1, their fractions of the clean r
 action-noisy and on state-noisy demonstrations, test whether the penalty is what keeps gail.py's D from the
 confidence that would collapse its student, and whether dropping it costs under noise more than on clean
 demonstrations; on state-noisy demonstrations, where gail.py without it collapsed, rile.py and the control run
-without it too, to see whether the trainer holds where v(D) does not. Other levels, or iqlearn.py and bc.py (which take no noise flags), are not run: the same sweep with
-another `--expert-action-noise`/`--expert-state-noise` and `--tag` adds them. What the discriminator did with the
+without it too, to see whether the trainer holds where v(D) does not. Other levels, or iqlearn.py and bc.py (which
+take no noise flags), are not run: the same sweep with another `--expert-action-noise`/`--expert-state-noise` and
+`--tag` adds them. What the discriminator did with the
 noisy demonstrations, over training: [noisy-demonstrations.md](noisy-demonstrations.md).
 """
 
