@@ -695,33 +695,73 @@ def shift_section(grouped: dict, results_dir: str, page_dir: str, env_id: str = 
             + "\n".join(commands) + "\n```\n")
 
 
-# The trainer's design, on Hopper-v4 seed 1: variant -> (tag added to rile.py's, flags); the first row is the default.
-TRAINER_REWARDS = {"exp-difference (default)": ("", "")} | {
-    name: (f"tr-{name}", f"--trainer-reward {name}")
-    for name in ("difference", "multiplication", "naive", "exp-naive", "sigmoid")}
-EXPERT_DATA = {"none in the student's batches, 0.1 of the trainer's (defaults)": ("", "")} | {
-    f"{f} of the student's batches": (f"sef{f}", f"--student-expert-fraction {f}") for f in (0.25, 0.5, 1.0)} | {
-    f"{f} of the trainer's batches": (f"tef{f}", f"--trainer-expert-fraction {f}") for f in (0.0, 0.5, 1.0)}
+# The trainer's design, on Hopper-v4 seed 1: variant -> (tag added to rile.py's, flags, row it is compared with); the
+# first row is the default. A tag in SCREENED was run before the experiment, with today's defaults and that flag, into
+# benchmarks/screens/ (rile.py's choice 8): its file is read from there and its command says so.
+TRAINER_REWARDS = {"exp-difference (default)": ("", "", "")} | {
+    name: (f"tr-{name}", f"--trainer-reward {name}", "") for name in ("difference", "multiplication", "naive",
+                                                                      "exp-naive", "sigmoid")}
+PAPER_TRAINER_REWARDS = {"exp-difference (default)": "highest final score",
+                         "exp-naive": "fastest to converge, plateaus lower"}
+STUDENT_ZERO = "none in the student's batches, 0.1 of the trainer's (defaults)"
+TRAINER_ZERO = "0 of the trainer's batches"
+EXPERT_DATA = {STUDENT_ZERO: ("", "", "")} | {
+    f"{f} of the student's batches": (f"sef{f}", f"--student-expert-fraction {f}", STUDENT_ZERO)
+    for f in (0.25, 0.5, 1.0)} | {TRAINER_ZERO: ("tef0", "--trainer-expert-fraction 0", "")} | {
+    f"{f} of the trainer's batches": (f"tef{f}", f"--trainer-expert-fraction {f}", TRAINER_ZERO) for f in (0.5, 1.0)}
+SCREENED = {"tef0": "benchmarks/screens"}
 
 
-def variants_table(algos: dict, env_id: str, variants: dict, seeds: str = "1") -> str:
-    """One row per variant of rile.py's defaults: its seeds' final and last-quarter scores, or 'not yet run'."""
-    lines = ["| variant | final, normalized | last quarter | first evaluation at 0.8 or above | command |",
-             "|---|---|---|---|---|"]
-    for name, (tag, flags) in variants.items():
-        runs = [r for r in runs_of(algos, condition_algo("rile-paperD", tag)) if str(r["seed"]) in seeds.split()]
-        command = f"`{sweep_command('rile-paperD', env_id, tag, flags, seeds)}`"
-        if not runs:
-            lines.append(f"| {name} | not yet run | | | {command} |")
+def first_at(r: dict, level: float = 0.8) -> Optional[int]:
+    """The first evaluation step whose normalized score is at or above `level` (the paper's convergence measure)."""
+    return next((e["step"] for e in r["evals"]
+                 if (normalized_score(e["mean"], random_return_of(r), r.get("expert_return")) or 0) >= level), None)
+
+
+def variants_section(grouped: dict, results_dir: str, page_dir: str, variants: dict, name: str,
+                     paper: Optional[dict] = None, env_id: str = "Hopper-v4") -> str:
+    """One row per variant of rile.py's defaults, seed 1: its final score, that score as a fraction of the row it is
+    compared with (or, where a variant names none, of the best final score), its last quarter, its first evaluation
+    at 0.8 or above and that step as a fraction of the compared row's; 'not yet run' and the command where no results
+    file exists; the learning curves of the variants that ran."""
+    screens = os.path.join(os.path.dirname(os.path.abspath(results_dir)), "screens")
+    runs, commands = {}, {}
+    for variant, (tag, flags, _) in variants.items():
+        algos = load_results(screens)[0].get(env_id, {}) if tag in SCREENED else grouped.get(env_id, {})
+        runs[variant] = [r for r in runs_of(algos, condition_algo("rile-paperD", tag)) if r["seed"] == 1][:1]
+        commands[variant] = sweep_command("rile-paperD", env_id, tag, flags, "1") + (
+            f" --results-dir {SCREENED[tag]}" if tag in SCREENED else "")
+    final = {v: normalized_score(rs[0]["final_return"], random_return_of(rs[0]), rs[0].get("expert_return"))
+             for v, rs in runs.items() if rs}
+    first = {v: first_at(rs[0]) for v, rs in runs.items() if rs}
+    best = max(final.values(), default=None)
+    ratio = lambda x, y: f"{x / y:.2f}" if x is not None and y else "-"
+    lines = [f"| variant | final, normalized | final, of {'the compared row' if paper is None else 'the best'} | "
+             "last quarter | first evaluation at 0.8 or above | "
+             + ("that step, of the compared row's | " if paper is None else "the paper | ") + "command |",
+             "|---|---|---|---|---|---|---|"]
+    for variant, (_, _, against) in variants.items():
+        paper_cell = (paper or {}).get(variant, "")
+        if variant not in final:
+            lines.append(f"| {variant} | not yet run | | | | {paper_cell} | `{commands[variant]}` |")
             continue
-        final = [normalized_score(r["final_return"], random_return_of(r), r.get("expert_return")) for r in runs]
-        first = [next((e["step"] for e in r["evals"]
-                       if (normalized_score(e["mean"], random_return_of(r), r.get("expert_return")) or 0) >= 0.8), None)
-                 for r in runs]
-        lines.append(f"| {name} | {', '.join(f'{x:.2f}' for x in final)} | "
-                     f"{', '.join(f'{last_quarter(r, normalize=True):.2f}' for r in runs)} | "
-                     f"{', '.join(f'{x // 1000}k' if x else 'never' for x in first)} | {command} |")
-    return "\n".join(lines)
+        step = first[variant]
+        if paper is not None:  # the ablation: a fraction of the best final score, the paper's words beside
+            of, last = ratio(final[variant], best), paper_cell or "-"
+        else:  # expert data: fractions of the compared row's final score and of its convergence step
+            of = ratio(final[variant], final.get(against)) if against else "-"
+            last = ratio(step, first.get(against)) if against else "-"
+        quarter = last_quarter(runs[variant][0], normalize=True)
+        lines.append(f"| {variant} | {final[variant]:.2f} | {of} | {quarter:.2f} | "
+                     f"{f'{step // 1000}k' if step else 'never'} | {last} | `{commands[variant]}` |")
+    ran = {v: rs for v, rs in runs.items() if rs}
+    png = os.path.join(results_dir, f"{name}-{env_id}.png")
+    if len(ran) > 1:
+        plot_env(f"{env_id}, seed 1", ran, png)
+        lines.append(f"\n![{env_id}: {name}]({os.path.relpath(png, page_dir)})")
+    elif os.path.exists(png):
+        os.remove(png)
+    return "\n".join(lines) + "\n"
 
 
 EXPERIMENTS_HEAD = """# The RILe paper's experiments
@@ -793,16 +833,20 @@ EXPERT_DATA_HEAD = """## Expert data in the buffers
 The paper replaces a share of the student's or the trainer's batches with expert pairs (its figure "Explicit Usage of
 Expert Data"): `--student-expert-fraction`, `--trainer-expert-fraction`; Hopper-v4 seed 1. The paper: more expert data
 speeds convergence but lowers the final score, and with only expert data the student drops markedly; 0 % scored
-highest. Today's default already puts 0.1 expert pairs in the trainer's batches (rile.py's header, choice 8).
+highest. Today's default already puts 0.1 expert pairs in the trainer's batches (rile.py's header, choice 8); the row
+with none there is the screening run behind that choice (benchmarks/screens/, today's defaults, an earlier commit of
+rile.py than this experiment's runs: its results file names it). Each student row is compared with the defaults, each
+trainer row with that run: its final score and its first evaluation at 0.8 or above as fractions of theirs (the
+paper's measures, normalized by the 0 % run).
 """
 
 
 def experiments_text(grouped: dict, results_dir: str, page_dir: str) -> str:
-    hopper = grouped.get("Hopper-v4", {})
     sections = [EXPERIMENTS_HEAD, NOISE_HEAD, noise_section(grouped, results_dir, page_dir), SHIFT_HEAD,
                 shift_section(grouped, results_dir, page_dir), TRAINER_HEAD,
-                variants_table(hopper, "Hopper-v4", TRAINER_REWARDS) + "\n", EXPERT_DATA_HEAD,
-                variants_table(hopper, "Hopper-v4", EXPERT_DATA) + "\n"]
+                variants_section(grouped, results_dir, page_dir, TRAINER_REWARDS, "trainer-rewards",
+                                 PAPER_TRAINER_REWARDS), EXPERT_DATA_HEAD,
+                variants_section(grouped, results_dir, page_dir, EXPERT_DATA, "expert-data")]
     return "\n".join(sections)
 
 

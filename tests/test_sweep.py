@@ -369,8 +369,35 @@ def test_the_experiments_page_from_results_files_alone(tmp_path):
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and f"]({os.path.relpath(png, tmp_path / 'docs')})" in page
     assert "### HalfCheetah-v4" in page and not (tmp_path / "results" / "noise-HalfCheetah-v4.png").exists()
     trainer = page.split("## The six trainer rewards")[1].split("##")[0]
-    assert "| naive | 0.30 | 0.30 | never | `python sweep.py --scripts rile.py --env-ids Hopper-v4 --seeds 1 " in trainer
-    assert "| exp-difference (default) | 0.90 | 0.90 | 1k |" in trainer and "| sigmoid | not yet run |" in trainer
+    # final 0.30 of the best row's 0.90: 0.33; the paper's words beside the rows it ranks
+    assert "| naive | 0.30 | 0.33 | 0.30 | never | - | `python sweep.py --scripts rile.py --env-ids Hopper-v4 " in trainer
+    assert "| exp-difference (default) | 0.90 | 1.00 | 0.90 | 1k | highest final score |" in trainer
+    assert "| sigmoid | not yet run |" in trainer and "| exp-naive | not yet run | | | | fastest to converge" in trainer
+    assert (tmp_path / "results" / "trainer-rewards-Hopper-v4.png").exists()
+
+
+def test_the_expert_data_table_against_the_zero_runs(tmp_path):
+    """Expert data: each row's final score and first evaluation at 0.8 or above as fractions of its 0 % run's (the
+    student's: the defaults; the trainer's: the screening run in benchmarks/screens/, whose command says so)."""
+    results, screens = tmp_path / "results" / "Hopper-v4", tmp_path / "screens" / "Hopper-v4"
+    results.mkdir(parents=True)
+    screens.mkdir(parents=True)
+    rise = lambda at, top: [0.0] * (at - 1) + [1000.0 * top] * (200 - at + 1)  # 0.8 or above from step `at` k
+    for folder, algo, curve in [(results, "rile-paperD", rise(40, 0.9)), (results, "rile-paperD-sef0.5", rise(20, 0.81)),
+                                (screens, "rile-paperD-tef0", rise(50, 1.0)), (results, "rile-paperD-tef0.5", rise(25, 0.8))]:
+        (folder / f"{algo}__1.json").write_text(json.dumps(fake_result(algo, 1, curve, 1000.0)))
+    readme = tmp_path / "README.md"
+    readme.write_text("# x\n")
+    sweep.report(str(tmp_path / "results"), readme=str(readme))
+    page = (tmp_path / "docs" / "experiments.md").read_text().split("## Expert data in the buffers")[1]
+    assert "| none in the student's batches, 0.1 of the trainer's (defaults) | 0.90 | - | 0.90 | 40k | - |" in page
+    assert "| 0.5 of the student's batches | 0.81 | 0.90 | 0.81 | 20k | 0.50 |" in page  # 0.81 / 0.9, 20k / 40k
+    assert ("| 0 of the trainer's batches | 1.00 | - | 1.00 | 50k | - | `python sweep.py --scripts rile.py --env-ids "
+            "Hopper-v4 --seeds 1 --total-timesteps 200000 --threads 1 --checkpoint-freq 10000 --tag paperD-tef0 "
+            "--trainer-expert-fraction 0 --results-dir benchmarks/screens` |") in page
+    assert "| 0.5 of the trainer's batches | 0.80 | 0.80 | 0.80 | 25k | 0.50 |" in page  # of the screened 0 % run
+    assert "| 1.0 of the trainer's batches | not yet run |" in page
+    assert (tmp_path / "results" / "expert-data-Hopper-v4.png").exists()
 
 
 def test_the_covariate_shift_table_against_the_no_noise_score(tmp_path):
