@@ -548,6 +548,18 @@ def last_quarter_d(r: dict) -> str:
     return f"{mean('d_demos'):.2f} / {mean('d_student'):.2f}" if rows else "-"
 
 
+def reward_paid(r: dict) -> str:
+    """What a run's reward paid per step at its last reward measure, on its student's pairs of the last interval / on
+    the demonstrations' pairs, then its correlation with the env's reward on the student's pairs, mean over the last
+    quarter's measures ('-' if not measured)."""
+    measures = [m for m in r.get("reward_measures") or [] if m.get("r_s_demos") is not None]
+    if not measures:
+        return "-"
+    end, last = r["evals"][-1]["step"], measures[-1]
+    corr = [m["cpr"] for m in measures if m["step"] > 0.75 * end and m.get("cpr") is not None]
+    return f"{last['r_s_student']:.2f} / {last['r_s_demos']:.2f}" + (f", env {np.mean(corr):+.2f}" if corr else "")
+
+
 def condition_runs(algos: dict, methods: list, conditions: dict) -> dict:
     """{(method, condition): its 200k runs of the condition's seeds}."""
     return {(m, c): [r for r in runs_of(algos, condition_algo(m, tag)) if r["seed"] in seeds]
@@ -680,6 +692,10 @@ def shift_section(grouped: dict, results_dir: str, page_dir: str, env_id: str = 
     lines = condition_table("student's actions", methods, conditions, scores, "no noise", PAPER_SHIFT)
     gap = [f"| student's actions | seeds | {GAP_COLUMNS} |", "|---|---|---|---|"]
     gap += [f"| {c} | {cell} |" for c, cell in trainer_rows(conditions[1:], runs)]
+    paid = ["| student's actions | " + " | ".join(METHODS[m].name for m in methods) + " |",
+            "|---" * (len(methods) + 1) + "|"]
+    paid += [f"| {c} | " + " | ".join("; ".join(map(reward_paid, runs[m, c])) or "-" for m in methods) + " |"
+             for c in conditions]
     commands = []
     for c in conditions[1:]:
         tag, flags, seeds = SHIFT[c]
@@ -688,7 +704,8 @@ def shift_section(grouped: dict, results_dir: str, page_dir: str, env_id: str = 
             command = sweep_command(m, env_id, tag, f"{reward} {flags}", " ".join(map(str, seeds)))
             commands.append(f"{command}  # {c}, {METHODS[m].name}")
     png = os.path.join(results_dir, f"shift-{env_id}.png")
-    return (f"### {env_id}\n\n" + "\n".join(lines) + "\n\n" + "\n".join(gap) + "\n\n"
+    return (f"### {env_id}\n\n" + "\n".join(lines) + "\n\n" + "\n".join(gap) + "\n\n" + PAID_HEAD
+            + "\n".join(paid) + "\n\n"
             + figure(png, page_dir, f"{env_id}: a frozen reward, noisy student actions", methods, conditions[1:],
                      scores, "no noise")
             + "The commands, after `python benchmarks/frozen_rewards.py` (the source row):\n\n```bash\n"
@@ -816,6 +833,15 @@ v(D)), gail.py's D (its softplus reward), and airl.py's g, h and level with `--r
 agent learned from (`--reward g`: g alone, AIRL's transfer, not run). The noise 0.5 and 1.25 are the paper's 0.2 and
 0.5 on Humanoid's [-0.4, 0.4] box. Each cell as above, as a fraction of the method's no-noise score; the source row
 is the run each reward came from.
+"""
+
+PAID_HEAD = """What each reward paid per step at the end of the run (its last measure, at 200k): on the student's
+pairs of the last 10k steps / on the demonstrations' pairs, then its correlation with the env's reward on the student's
+pairs (mean over the last quarter), one entry per seed. The source row is the reward while it was learned, the others
+the same reward frozen. A fresh student that earns per step what the source's student earned has got from the frozen
+reward what its source got; if it scores lower all the same, the reward pays its gait as well as the expert-like one,
+and it is the reward, not the student, that did not transfer.
+
 """
 
 TRAINER_HEAD = """## The six trainer rewards

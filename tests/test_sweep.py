@@ -409,11 +409,18 @@ def test_the_covariate_shift_table_against_the_no_noise_score(tmp_path):
     for algo, seed, score in [("rile-paperD-source", 1, 0.9), ("rile-paperD", 2, 1.0), ("rile-paperD-shift0", 1, 0.8),
                               ("rile-paperD-shift0", 2, 0.6), ("rile-paperD-shift1.25", 1, 0.35),
                               ("rile-paperD-control-shift1.25", 1, 0.5), ("rile-paperD-control-shift1.25", 2, 0.5)]:
-        (hopper / f"{algo}__{seed}.json").write_text(json.dumps(fake_result(algo, seed, [1000.0 * score] * 200, 1000.0)))
+        result = fake_result(algo, seed, [1000.0 * score] * 200, 1000.0)
+        if algo == "rile-paperD-shift0":  # what the frozen reward paid: measured at 100k, 160k and 200k
+            result["reward_measures"] = [{"step": step, "r_s_demos": 0.9, "r_s_student": 0.1 * seed + step / 1e6,
+                                          "cpr": cpr} for step, cpr in ((100_000, 0.9), (160_000, -0.2), (200_000, 0.4))]
+        (hopper / f"{algo}__{seed}.json").write_text(json.dumps(result))
     readme = tmp_path / "README.md"
     readme.write_text("# x\n")
     sweep.report(str(tmp_path / "results"), readme=str(readme))
     shift = (tmp_path / "docs" / "experiments.md").read_text().split("## Covariate shift")[1].split("\n## ")[0]
+    # the last measure's r_S on the student (0.1 * seed + 0.2) / on the demos, the correlation over 160k and 200k
+    assert "| no noise | 0.30 / 0.90, env +0.10; 0.40 / 0.90, env +0.10 | - | - | - |" in shift
+    assert "| source run | - | - | - | - |" in shift
     assert "| source run | 0.90: **0.90** | not yet run | not yet run | not yet run |" in shift  # seed 1 only
     assert "| no noise | 0.80, 0.60: **0.70** | not yet run |" in shift
     assert "| noise 1.25 | 0.35: **0.35** = 0.50 of no noise (paper 0.88) | 0.50, 0.50: **0.50** | " in shift
