@@ -714,7 +714,7 @@ def shift_section(grouped: dict, results_dir: str, page_dir: str, env_id: str = 
 
 # The trainer's design, on Hopper-v4 seed 1: variant -> (tag added to rile.py's, flags, row it is compared with); the
 # first row is the default. A tag in SCREENED was run before the experiment, with today's defaults and that flag, into
-# benchmarks/screens/ (rile.py's choice 8): its file is read from there and its command says so.
+# SCREENS beside the results folder (rile.py's choice 8): its file is read from there and its command says so.
 TRAINER_REWARDS = {"exp-difference (default)": ("", "", "")} | {
     name: (f"tr-{name}", f"--trainer-reward {name}", "") for name in ("difference", "multiplication", "naive",
                                                                       "exp-naive", "sigmoid")}
@@ -726,7 +726,7 @@ EXPERT_DATA = {STUDENT_ZERO: ("", "", "")} | {
     f"{f} of the student's batches": (f"sef{f}", f"--student-expert-fraction {f}", STUDENT_ZERO)
     for f in (0.25, 0.5, 1.0)} | {TRAINER_ZERO: ("tef0", "--trainer-expert-fraction 0", "")} | {
     f"{f} of the trainer's batches": (f"tef{f}", f"--trainer-expert-fraction {f}", TRAINER_ZERO) for f in (0.5, 1.0)}
-SCREENED = {"tef0": "benchmarks/screens"}
+SCREENED, SCREENS = ("tef0",), "screens"
 
 
 def first_at(r: dict, level: float = 0.8) -> Optional[int]:
@@ -741,13 +741,14 @@ def variants_section(grouped: dict, results_dir: str, page_dir: str, variants: d
     compared with (or, where a variant names none, of the best final score), its last quarter, its first evaluation
     at 0.8 or above and that step as a fraction of the compared row's; 'not yet run' and the command where no results
     file exists; the learning curves of the variants that ran."""
-    screens = os.path.join(os.path.dirname(os.path.abspath(results_dir)), "screens")
+    screens = os.path.join(os.path.dirname(os.path.abspath(results_dir)), SCREENS)
     runs, commands = {}, {}
     for variant, (tag, flags, _) in variants.items():
         algos = load_results(screens)[0].get(env_id, {}) if tag in SCREENED else grouped.get(env_id, {})
         runs[variant] = [r for r in runs_of(algos, condition_algo("rile-paperD", tag)) if r["seed"] == 1][:1]
         commands[variant] = sweep_command("rile-paperD", env_id, tag, flags, "1") + (
-            f" --results-dir {SCREENED[tag]}" if tag in SCREENED else "")
+            f" --results-dir {os.path.relpath(os.path.join(os.path.dirname(RESULTS_DIR), SCREENS), ROOT)}"
+            if tag in SCREENED else "")
     final = {v: normalized_score(rs[0]["final_return"], random_return_of(rs[0]), rs[0].get("expert_return"))
              for v, rs in runs.items() if rs}
     first = {v: first_at(rs[0]) for v, rs in runs.items() if rs}
