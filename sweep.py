@@ -23,6 +23,7 @@ import contextlib
 import json
 import math
 import os
+import re
 import subprocess
 import sys
 import time
@@ -685,6 +686,44 @@ def noise_section(grouped: dict, results_dir: str, page_dir: str) -> str:
     return "\n".join(parts)
 
 
+def rollout_actor(path: str) -> str:
+    """Who an actor of benchmarks/frozen_reward_rollouts.py is: the demonstrator, the source run's student, or a
+    fresh student of a covariate-shift condition and seed."""
+    if path.startswith("experts/"):
+        return "the demonstrator"
+    if "source__" in path:
+        return "the source run's student"
+    found = re.search(r"-(shift[\d.]+)__(\d+)", path)
+    condition = {tag: c for c, (tag, _, _) in SHIFT.items()}.get(found and found[1])
+    return f"fresh student, {condition}, seed {found[2]}" if condition else path
+
+
+def frozen_rollouts_table(results_dir: str, env_id: str, methods: list) -> str:
+    """Each frozen reward on rollouts of the actors benchmarks/frozen_reward_rollouts.py scored (its --out files under
+    <env-id>/frozen-rollouts/<method>.json): env return, falls, and the frozen reward per step and discounted from
+    reset, with the mean action / sampled actions ('' if none measured)."""
+    rows, commands = [], []
+    for m in methods:
+        path = os.path.join(results_dir, env_id, "frozen-rollouts", f"{m}.json")
+        if not os.path.isfile(path):
+            continue
+        with open(path) as f:
+            p = json.load(f)
+        commands.append(p["command"])
+        by_actor = {}
+        for row in p["rows"]:
+            by_actor.setdefault(row["actor"], {})[row["action"]] = row
+        for actor, modes in by_actor.items():
+            both = lambda key, fmt: " / ".join(format(np.mean(modes[a][key]), fmt) for a in ("mean", "sampled"))
+            rows.append(f"| {METHODS[m].name} | {rollout_actor(actor)} | {both('return', '.0f')} | "
+                        f"{sum(modes['mean']['terminated'])} / {sum(modes['sampled']['terminated'])} of "
+                        f"{p['episodes']} | {both('frozen_per_step', '.3f')} | {both('frozen_discounted', '.1f')} |")
+    if not rows:
+        return ""
+    return (ROLLOUTS_HEAD + "| reward | actor | env return | falls | frozen reward per step | discounted frozen return "
+            "|\n|---|---|---|---|---|---|\n" + "\n".join(rows) + "\n\n```bash\n" + "\n".join(commands) + "\n```\n\n")
+
+
 def shift_section(grouped: dict, results_dir: str, page_dir: str, env_id: str = "Hopper-v4") -> str:
     methods, conditions = list(METHODS), list(SHIFT)
     runs = condition_runs(grouped.get(env_id, {}), methods, SHIFT)
@@ -705,7 +744,7 @@ def shift_section(grouped: dict, results_dir: str, page_dir: str, env_id: str = 
             commands.append(f"{command}  # {c}, {METHODS[m].name}")
     png = os.path.join(results_dir, f"shift-{env_id}.png")
     return (f"### {env_id}\n\n" + "\n".join(lines) + "\n\n" + "\n".join(gap) + "\n\n" + PAID_HEAD
-            + "\n".join(paid) + "\n\n"
+            + "\n".join(paid) + "\n\n" + frozen_rollouts_table(results_dir, env_id, methods)
             + figure(png, page_dir, f"{env_id}: a frozen reward, noisy student actions", methods, conditions[1:],
                      scores, "no noise")
             + "The commands, after `python benchmarks/frozen_rewards.py` (the source row):\n\n```bash\n"
@@ -842,6 +881,16 @@ pairs (mean over the last quarter), one entry per seed. The source row is the re
 the same reward frozen. A fresh student that earns per step what the source's student earned has got from the frozen
 reward what its source got; if it scores lower all the same, the reward pays its gait as well as the expert-like one,
 and it is the reward, not the student, that did not transfer.
+
+"""
+
+ROLLOUTS_HEAD = """Each frozen reward on whole episodes of the demonstrator, of the source run's student and of fresh
+students (`benchmarks/frozen_reward_rollouts.py`, the command below the table; the same reset seeds for every actor),
+each cell with the mean action / with sampled actions, which the students trained on: the env return, the falls, the
+frozen reward per step, and the frozen return discounted from the reset state with the student's gamma (where the run
+used absorbing states, a fall then pays the absorbing state's reward forever). A reward that transfers pays these
+actors in the env's order. A fresh student paid more than the source run's student while the env pays it less has
+found a gait the reward overpays; one paid less has not climbed the reward as far as the source's student did.
 
 """
 

@@ -13,6 +13,7 @@ import torch
 import airl
 import gail
 import rile
+from benchmarks import frozen_reward_rollouts
 from conftest import ROOT
 
 PENDULUM = ["--env-id", "InvertedPendulum-v4", "--learning-starts", "200", "--eval-freq", "300", "--eval-episodes", "2",
@@ -120,6 +121,12 @@ def test_a_fresh_learner_against_a_frozen_reward_acts_with_noise_and_is_evaluate
     actor.load_state_dict(actor_file["actor"])
     returns = rile.evaluate(actor.act, "InvertedPendulum-v4", 2, seed=1 + 100_000)  # the scripts' evaluation, no noise
     assert results["evals"][-1]["mean"] == pytest.approx(float(np.mean(returns)))
+    # benchmarks/frozen_reward_rollouts.py on the fresh learner: its mean-action episodes are the evaluation's
+    run("benchmarks/frozen_reward_rollouts.py", "runs/src/reward.pt", "runs/cs", "--episodes", "2", "--seed", "100001",
+        "--out", "rollouts.json")
+    rows = json.loads((tmp_path / "rollouts.json").read_text())["rows"]
+    assert [row["action"] for row in rows] == ["mean", "sampled"] and rows[0]["return"] == pytest.approx(returns)
+    assert all(len(row["frozen_per_step"]) == 2 and np.isfinite(row["frozen_discounted"]).all() for row in rows)
 
 
 def test_the_frozen_rewards_tool_saves_each_sources_reward_with_its_provenance(run, tmp_path):
@@ -140,3 +147,50 @@ def test_the_frozen_rewards_tool_saves_each_sources_reward_with_its_provenance(r
     source = json.loads((tmp_path / "results/InvertedPendulum-v4/airl-source__1.json").read_text())  # the source row
     assert source["finished"] and source["command"].startswith("python airl.py --env-id InvertedPendulum-v4 --seed 1 ")
     assert (tmp_path / "results/InvertedPendulum-v4/gail-paperD-autotune-source__1.json").exists()
+
+
+def test_the_rollout_tool_discounts_from_reset_with_the_absorbing_tail():
+    """benchmarks/frozen_reward_rollouts.py by hand: rewards 1, 2, 3 with gamma 0.5 are 1 + 0.5*2 + 0.25*3 = 2.75;
+    with 3 the absorbing state's reward, repeated from step 2 on: 1 + 0.5*2 + 0.25*3 / (1 - 0.5) = 3.5. An episode
+    that falls is stored as the learner stores it: with absorbing states the indicator column, the fall leading to
+    the absorbing state and its zero-action self-loop; without, the last row terminal."""
+    assert frozen_reward_rollouts.discounted(np.array([1.0, 2.0, 3.0]), 0.5, False) == pytest.approx(2.75)
+    assert frozen_reward_rollouts.discounted(np.array([1.0, 2.0, 3.0]), 0.5, True) == pytest.approx(3.5)
+    obs, actions, next_obs = np.ones((2, OBS)), np.full((2, ACT), 0.5), np.full((2, OBS), 2.0)
+    b = frozen_reward_rollouts.episode_batch(obs, actions, next_obs, True, absorbing=True)
+    s_abs = torch.tensor([0.0] * OBS + [1.0])
+    assert b["obs"].shape == (3, OBS + 1) and torch.equal(b["obs"][2], s_abs) and torch.equal(b["next_obs"][1], s_abs)
+    assert torch.equal(b["next_obs"][2], s_abs) and torch.equal(b["next_obs"][0], torch.tensor([2.0] * OBS + [0.0]))
+    assert torch.equal(b["actions"][2], torch.zeros(ACT)) and not b["terminations"].any()
+    b = frozen_reward_rollouts.episode_batch(obs, actions, next_obs, True, absorbing=False)
+    assert b["obs"].shape == (2, OBS) and b["terminations"].tolist() == [0.0, 1.0]
+
+
+@pytest.mark.parametrize("name,student_reward", [("rile.py", "trainer"), ("rile.py", "discriminator"),
+                                                 ("gail.py", None), ("airl.py", None)])
+def test_the_rollout_tool_pays_what_a_learner_against_the_file_is_paid(name, student_reward, tmp_path, monkeypatch):
+    """The tool's frozen reward of a reward.pt, on a batch, is what the script's update hands a fresh learner against
+    that file (rile.py: absorbing states, so its observations carry the indicator column)."""
+    module = SCRIPTS[name]
+    kw = {"student_reward": student_reward, "trainer_hidden_dim": 8} if name == "rile.py" else {}
+    args, agent, disc, rb = source(name, **kw)
+    env_obs = OBS - (args.termination_remedy == "absorbing")  # the env's dims; rile.py adds the indicator
+    trainer = rile.make_trainer(OBS, ACT, args, "cpu") if student_reward == "trainer" else None
+    torch.save(module.reward_file(*((trainer,) if name == "rile.py" else ()), disc, args, env_obs, ACT),
+               tmp_path / "reward.pt")
+    absorbing, gamma, reward = frozen_reward_rollouts.frozen_reward(str(tmp_path / "reward.pt"), "Hopper-v4", env_obs, ACT)
+    assert absorbing == (name == "rile.py") and gamma == args.gamma
+    seen = []
+    monkeypatch.setattr(agent, "update", lambda *batch, prefix: seen.append(batch) or {})
+    for _ in range(3):
+        if name == "rile.py":
+            state = rile.rile_state("cpu") | {"reward_only": True}
+            rile.rile_update(agent, trainer, disc, rb, None, args, state, 0)
+        elif name == "gail.py":
+            gail.gail_update(agent, disc, rb, None, args, update_disc=False)
+        else:
+            airl.airl_update(agent, disc, rb, None, args, update_disc=False)
+    for obs, actions, next_obs, rewards, terminations in seen:
+        batch = {"obs": obs, "actions": actions, "next_obs": next_obs, "terminations": terminations}
+        with torch.no_grad():
+            assert torch.allclose(reward(batch, agent.actor), rewards, atol=1e-6) and not torch.any(rewards == 9.0)

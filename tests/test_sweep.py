@@ -414,10 +414,21 @@ def test_the_covariate_shift_table_against_the_no_noise_score(tmp_path):
             result["reward_measures"] = [{"step": step, "r_s_demos": 0.9, "r_s_student": 0.1 * seed + step / 1e6,
                                           "cpr": cpr} for step, cpr in ((100_000, 0.9), (160_000, -0.2), (200_000, 0.4))]
         (hopper / f"{algo}__{seed}.json").write_text(json.dumps(result))
+    (hopper / "frozen-rollouts").mkdir()  # benchmarks/frozen_reward_rollouts.py --out, two actors, two episodes
+    row = lambda actor, action, ret, falls, per_step, disc: {
+        "actor": actor, "action": action, "return": ret, "terminated": falls, "frozen_per_step": per_step,
+        "frozen_discounted": disc}
+    (hopper / "frozen-rollouts" / "airl.json").write_text(json.dumps({"episodes": 2, "command": "python x.py", "rows": [
+        row("experts/Hopper-v4-actor.pt", "mean", [3000, 3100], [False, False], [0.9, 0.8], [80, 70]),
+        row("experts/Hopper-v4-actor.pt", "sampled", [2900, 2900], [False, True], [0.7, 0.6], [60, 50]),
+        row("runs/bench__Hopper-v4__airl-shift1.25__2", "mean", [100, 200], [True, True], [-0.5, -0.4], [-9, -8]),
+        row("runs/bench__Hopper-v4__airl-shift1.25__2", "sampled", [100, 100], [True, True], [-0.5, -0.5], [-9, -9])]}))
     readme = tmp_path / "README.md"
     readme.write_text("# x\n")
     sweep.report(str(tmp_path / "results"), readme=str(readme))
     shift = (tmp_path / "docs" / "experiments.md").read_text().split("## Covariate shift")[1].split("\n## ")[0]
+    assert "| airl.py | the demonstrator | 3050 / 2900 | 0 / 1 of 2 | 0.850 / 0.650 | 75.0 / 55.0 |" in shift
+    assert "| airl.py | fresh student, noise 1.25, seed 2 | 150 / 100 | 2 / 2 of 2 | -0.450 / -0.500 | -8.5 / -9.0 |" in shift
     # the last measure's r_S on the student (0.1 * seed + 0.2) / on the demos, the correlation over 160k and 200k
     assert "| no noise | 0.30 / 0.90, env +0.10; 0.40 / 0.90, env +0.10 | - | - | - |" in shift
     assert "| source run | - | - | - | - |" in shift
