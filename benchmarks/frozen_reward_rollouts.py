@@ -31,6 +31,7 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 import airl  # noqa: E402
 import gail  # noqa: E402
 import rile  # noqa: E402  (the actor and env blocks are the same in every script)
+from benchmarks.policy_modes import load_actor  # noqa: E402
 
 SCRIPTS = {"rile.py": rile, "gail.py": gail, "airl.py": airl}
 
@@ -125,20 +126,6 @@ def score(actor: rile.Actor, env_id: str, reward, absorbing: bool, gamma: float,
             out["frozen_absorbing"] = float(rewards[-1])
     env.close()
     return out
-
-
-def load_actor(path: str) -> tuple:
-    """(actor, env_id) of an actor.pt, or of a run directory holding one."""
-    file = os.path.join(path, "actor.pt") if os.path.isdir(path) else path
-    try:
-        saved = torch.load(file, map_location="cpu", weights_only=False)
-        env = rile.make_env(saved["env_id"], 0)
-        actor = rile.Actor(saved["obs_dim"], saved["act_dim"], env.action_space.low, env.action_space.high,
-                           saved["hidden_dim"])
-        actor.load_state_dict(saved["actor"])
-    except (OSError, KeyError, RuntimeError, EOFError, pickle.UnpicklingError) as e:
-        sys.exit(f"error: {file} is not a readable actor.pt ({type(e).__name__}: {e})")
-    return actor, saved["env_id"]
 
 
 def main():

@@ -47,6 +47,20 @@ def rollouts(actor: rile.Actor, env_id: str, episodes: int, seed: int, determini
     return out
 
 
+def load_actor(path: str) -> tuple:
+    """(actor, env id) of an actor.pt any script wrote, or of a run directory holding one; else a one-line error."""
+    file = os.path.join(path, "actor.pt") if os.path.isdir(path) else path
+    try:
+        saved = torch.load(file, map_location="cpu", weights_only=False)
+        env = rile.make_env(saved["env_id"], 0)
+        actor = rile.Actor(saved["obs_dim"], saved["act_dim"], env.action_space.low, env.action_space.high,
+                           saved["hidden_dim"])
+        actor.load_state_dict(saved["actor"])
+    except (OSError, KeyError, RuntimeError, EOFError, pickle.UnpicklingError) as e:
+        sys.exit(f"error: {file} is not a readable actor.pt ({type(e).__name__}: {e})")
+    return actor, saved["env_id"]
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("actor", help="an actor.pt written by any of the scripts")
@@ -54,23 +68,16 @@ def main():
     parser.add_argument("--seed", type=int, default=100_001)
     cli = parser.parse_args()
     torch.set_num_threads(1)
-    try:
-        saved = torch.load(cli.actor, map_location="cpu", weights_only=False)
-        env = rile.make_env(saved["env_id"], cli.seed)
-        actor = rile.Actor(saved["obs_dim"], saved["act_dim"], env.action_space.low, env.action_space.high,
-                           saved["hidden_dim"])
-        actor.load_state_dict(saved["actor"])
-    except (OSError, KeyError, RuntimeError, EOFError, pickle.UnpicklingError) as e:
-        sys.exit(f"error: {cli.actor} is not a readable actor.pt ({type(e).__name__}: {e})")
-    print(f"{cli.actor}: {saved['env_id']}, {cli.episodes} episodes from reset seed {cli.seed}")
+    actor, env_id = load_actor(cli.actor)
+    print(f"{cli.actor}: {env_id}, {cli.episodes} episodes from reset seed {cli.seed}")
     for name, det in (("mean action", True), ("sampled", False)):
-        eps = rollouts(actor, saved["env_id"], cli.episodes, cli.seed, det)
+        eps = rollouts(actor, env_id, cli.episodes, cli.seed, det)
         rets, lens = np.array([e[0] for e in eps]), np.array([e[1] for e in eps])
         falls = [int(e[1]) for e in eps if e[2]]
         print(f"{name:11s}: return {rets.mean():8.1f} +- {rets.std():6.1f} (min {rets.min():.0f}, max {rets.max():.0f}), "
               f"return per step {rets.sum() / lens.sum():.2f}, {len(falls)} of {len(eps)} terminated"
               + (f" at steps {sorted(falls)}" if falls else ""))
-        if saved["env_id"] in TORSO_PITCH:
+        if env_id in TORSO_PITCH:
             over = [e[3] for e in eps if e[3] is not None]
             print(f"{'':13s}{len(over)} of {len(eps)} turned onto its back"
                   + (f", first at steps {sorted(over)}" if over else ""))
