@@ -594,9 +594,9 @@ GAP_COLUMNS = "rile.py minus the control: last quarter [95% interval] | the same
 
 
 def trainer_rows(conditions: list, runs: dict) -> list:
-    """rile.py minus the control per condition: difference of the last-quarter means and its 95% bootstrap interval,
-    then the same over the second half (a single fall of one seed moves a five-evaluation mean by up to 0.2; where
-    the two disagree, it is when the falls came, not how many)."""
+    """rile.py minus the control per condition: difference of the last-quarter means and its 95% bootstrap interval
+    (none where either has one seed), then the same over the second half (a single fall of one seed moves a
+    five-evaluation mean by up to 0.2; where the two disagree, it is when the falls came, not how many)."""
     rows = []
     for c in conditions:
         a, b = (runs[m, c] for m in TRAINER_GAP)
@@ -604,8 +604,12 @@ def trainer_rows(conditions: list, runs: dict) -> list:
             cells = []
             for after in (0.75, 0.5):
                 x, y = ([last_quarter(r, normalize=True, after=after) for r in rs] for rs in (a, b))
+                gap = f"{np.mean(x) - np.mean(y):+.3f}"
+                if min(len(x), len(y)) < 2:  # a bootstrap over one seed has no spread to show
+                    cells.append(f"{gap} (one seed: no interval)")
+                    continue
                 lo, hi = difference_ci(x, y)
-                cells.append(f"{np.mean(x) - np.mean(y):+.3f} [{lo:+.3f}, {hi:+.3f}]")
+                cells.append(f"{gap} [{lo:+.3f}, {hi:+.3f}]")
             rows.append((c, f"{len(a)} and {len(b)} | " + " | ".join(cells)))
     return rows
 

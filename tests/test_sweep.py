@@ -53,6 +53,22 @@ def test_difference_interval():
     assert sweep.difference_ci([0.3, 0.9, 0.4], [0.1, 0.2]) == sweep.difference_ci([0.3, 0.9, 0.4], [0.1, 0.2])
 
 
+def test_trainer_rows_interval_needs_two_seeds_each():
+    """Curves of 8 evaluations (expert 100, random 0): the last quarter is the last two, the second half the last four.
+    rile.py one seed [.., 60, 80] against the control's [.., 20, 40]: +0.400, and no interval from one seed; with a
+    second seed each the bootstrap interval appears."""
+    rile = fake_result("rile-paperD", 1, [0, 0, 0, 0, 40, 40, 60, 80], 100.0)
+    control = fake_result("rile-paperD-control", 1, [0, 0, 0, 0, 0, 0, 20, 40], 100.0)
+    runs = {("rile-paperD", "a"): [rile], ("rile-paperD-control", "a"): [control]}
+    assert sweep.trainer_rows(["a"], runs) == [("a", "1 and 1 | +0.400 (one seed: no interval) | "
+                                                     "+0.400 (one seed: no interval)")]
+    runs["rile-paperD", "a"] = [rile, fake_result("rile-paperD", 2, [0] * 6 + [80, 100], 100.0)]
+    runs["rile-paperD-control", "a"] = [control, control]
+    # last quarter: 0.7 and 0.9 against 0.3 twice, resampled means 0.7, 0.8, 0.9 (p 1/4, 1/2, 1/4) minus 0.3;
+    # second half: 0.55 and 0.45 against 0.15, resampled 0.45, 0.5, 0.55 minus 0.15
+    assert sweep.trainer_rows(["a"], runs) == [("a", "2 and 2 | +0.500 [+0.400, +0.600] | +0.350 [+0.300, +0.400]")]
+
+
 # ---------------------------------------------------------------- report
 
 
