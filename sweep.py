@@ -347,9 +347,9 @@ def summarize(runs: list) -> dict:
     normalized = [normalized_score(r["final_return"], random_return_of(r), r.get("expert_return")) for r in runs]
     normalized = [n for n in normalized if n is not None]
     score = normalized if len(normalized) == len(runs) else finals
-    lo, hi = bootstrap_ci(score)
     return {"n": len(runs), "return": mean_se(finals), "normalized": mean_se(normalized) if normalized else None,
-            "iqm": iqm(score), "iqm_ci": (lo, hi), "iqm_of": "normalized" if score is normalized else "return",
+            "iqm": iqm(score), "iqm_ci": bootstrap_ci(score) if len(score) > 1 else None,  # one seed: no spread
+            "iqm_of": "normalized" if score is normalized else "return",
             "last_quarter": mean_se([last_quarter(r, score is normalized) for r in runs]),
             "worst": min(last_quarter(r, score is normalized, worst=True) for r in runs),
             "steps": max(r["evals"][-1]["step"] for r in runs),
@@ -387,8 +387,9 @@ def env_table(env_id: str, algos: dict, names: Optional[dict] = None) -> str:
         norm = fmt(s["normalized"], 3) if s["normalized"] else "-"
         digits = 3 if s["iqm_of"] == "normalized" else 1
         name = (names or {}).get(algo, algo)
-        lines.append(f"| {name} | {s['n']} | {fmt(s['return'])} | {norm} | {s['iqm']:.{digits}f} "
-                     f"[{s['iqm_ci'][0]:.{digits}f}, {s['iqm_ci'][1]:.{digits}f}] | {fmt(s['last_quarter'], digits)} | "
+        ci = f" [{s['iqm_ci'][0]:.{digits}f}, {s['iqm_ci'][1]:.{digits}f}]" if s["iqm_ci"] else ""
+        lines.append(f"| {name} | {s['n']} | {fmt(s['return'])} | {norm} | {s['iqm']:.{digits}f}{ci} "
+                     f"| {fmt(s['last_quarter'], digits)} | "
                      f"{s['worst']:.{digits}f} | {s['steps']} | {s['wall_h']:.2f} | "
                      f"{'-' if 'control' in algo else paper.get(algo.split(' ')[0].split('-')[0], '-')} |")
     return "\n".join(lines)
@@ -445,8 +446,9 @@ def plot_env(env_id: str, algos: dict, path: str, names: Optional[dict] = None) 
 COLUMNS = ("Final return: the last deterministic evaluation of each seed, mean ± standard error over seeds; "
            "normalized: (return - random) / (expert - random), 0 for uniform random actions and 1 for the "
            "demonstrations' mean return (D4RL's convention); IQM: interquartile mean over seeds with a "
-           "95% percentile-bootstrap interval; last quarter: the mean of each seed's evaluations after 3/4 of its "
-           "steps (its last five of a 200k run; normalized where the IQM is), then mean ± standard error over seeds; "
+           "95% percentile-bootstrap interval (none for one seed); last quarter: the mean of each seed's evaluations "
+           "after 3/4 of its steps (its last five of a 200k run; normalized where the IQM is), then mean ± standard "
+           "error over seeds; "
            "worst: the lowest of those evaluations over all seeds; steps: env steps, "
            "except bc.py's (gradient steps, no env interaction). Paper: the RILe paper's "
            "MuJoCo table (v2 envs, its own training length).\n")
@@ -463,10 +465,12 @@ def trainer_gap(rows: dict) -> str:
     if None in final[0] + final[1]:
         return ""
     quarter = [[last_quarter(r, normalize=True) for r in g] for g in runs]
-    lo, hi = difference_ci(*quarter)
+    interval = "one seed: no interval"  # a bootstrap over one seed has no spread to show
+    if min(len(g) for g in runs) > 1:
+        interval = "95% bootstrap interval [{:+.3f}, {:+.3f}]".format(*difference_ci(*quarter))
     return (f"What the trainer adds, rile.py defaults minus the control ({len(runs[0])} and {len(runs[1])} seeds): "
-            f"last quarter {np.mean(quarter[0]) - np.mean(quarter[1]):+.3f} (95% bootstrap interval [{lo:+.3f}, "
-            f"{hi:+.3f}]), final {np.mean(final[0]) - np.mean(final[1]):+.3f}, normalized.")
+            f"last quarter {np.mean(quarter[0]) - np.mean(quarter[1]):+.3f} ({interval}), "
+            f"final {np.mean(final[0]) - np.mean(final[1]):+.3f}, normalized.")
 
 
 # ---------------------------------------------------------------- the paper's experiments (docs/experiments.md)

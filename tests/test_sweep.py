@@ -56,7 +56,7 @@ def test_difference_interval():
 def test_trainer_rows_interval_needs_two_seeds_each():
     """Curves of 8 evaluations (expert 100, random 0): the last quarter is the last two, the second half the last four.
     rile.py one seed [.., 60, 80] against the control's [.., 20, 40]: +0.400, and no interval from one seed; with a
-    second seed each the bootstrap interval appears."""
+    second seed each the bootstrap interval appears, in the rows and in the README's line alike."""
     rile = fake_result("rile-paperD", 1, [0, 0, 0, 0, 40, 40, 60, 80], 100.0)
     control = fake_result("rile-paperD-control", 1, [0, 0, 0, 0, 0, 0, 20, 40], 100.0)
     runs = {("rile-paperD", "a"): [rile], ("rile-paperD-control", "a"): [control]}
@@ -67,6 +67,12 @@ def test_trainer_rows_interval_needs_two_seeds_each():
     # last quarter: 0.7 and 0.9 against 0.3 twice, resampled means 0.7, 0.8, 0.9 (p 1/4, 1/2, 1/4) minus 0.3;
     # second half: 0.55 and 0.45 against 0.15, resampled 0.45, 0.5, 0.55 minus 0.15
     assert sweep.trainer_rows(["a"], runs) == [("a", "2 and 2 | +0.500 [+0.400, +0.600] | +0.350 [+0.300, +0.400]")]
+
+    # the README's line on what the trainer adds: the same curves, finals 0.8 and 1.0 against 0.4
+    rows = {algo: runs[algo, "a"] for algo in sweep.TRAINER_GAP}
+    assert sweep.trainer_gap(rows) == (
+        "What the trainer adds, rile.py defaults minus the control (2 and 2 seeds): last quarter +0.500 (95% bootstrap "
+        "interval [+0.400, +0.600]), final +0.500, normalized.")
 
 
 # ---------------------------------------------------------------- report
@@ -99,7 +105,7 @@ def test_report_table_plot_and_readme(results_dir, tmp_path):
     # worst: the lowest of those evaluations over all seeds (gail's seed 1: 0.25)
     assert ("| gail | 3 | 2000.0 ± 577.4 | 0.500 ± 0.144 | 0.500 [0.250, 0.750] | 0.500 ± 0.144 | 0.250 | 2000 | 2.00 "
             "| 3361 |") in text
-    assert "| rile | 1 | 3500.0 | 1.000 | 1.000 [1.000, 1.000] | 1.000 | 1.000 | 3000 | 1.00 | 3417 |" in text
+    assert "| rile | 1 | 3500.0 | 1.000 | 1.000 | 1.000 | 1.000 | 3000 | 1.00 | 3417 |" in text  # one seed: no interval
     png = results_dir / "Hopper-v4-all.png"  # every tag; Hopper-v4.png holds today's defaults, of which there are none
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 5000
     assert not (results_dir / "Hopper-v4.png").exists()
@@ -141,9 +147,9 @@ def test_the_readme_shows_todays_defaults_by_name_and_docs_every_tag(results_dir
     pendulum = section.split("### Pendulum-v1")[1].split("###")[0]
     assert "bc.py defaults with 10 demonstrations" in pendulum and sweep.SELECTION_NOTE not in pendulum
     # what the trainer adds: rile.py normalized 0.9375 and 1 (its last quarter: the final evaluation alone), the
-    # control 0.5; the difference 0.46875, its interval from rile.py's resampled means 0.9375, 0.96875, 1 less 0.5
-    assert ("What the trainer adds, rile.py defaults minus the control (2 and 1 seeds): last quarter +0.469 (95% "
-            "bootstrap interval [+0.438, +0.500]), final +0.469, normalized.") in section
+    # control 0.5 from one seed, so no interval
+    assert ("What the trainer adds, rile.py defaults minus the control (2 and 1 seeds): last quarter +0.469 (one "
+            "seed: no interval), final +0.469, normalized.") in section
     assert section.count("What the trainer adds") == 1 and "What the trainer adds" in hopper  # none without a control
     assert "[Hopper-v4.png](results/Hopper-v4.png)" in section and (tmp_path / "results/Hopper-v4.png").exists()
 
