@@ -253,17 +253,23 @@ def iqm(values) -> float:
     return float(x[cut : len(x) - cut].mean())
 
 
-def bootstrap_ci(values, stat=iqm, num_samples: int = 2000, confidence: float = 0.95, seed: int = 0) -> tuple:
-    """Percentile bootstrap over seeds (fixed RNG seed: the report is reproducible)."""
+def bootstrap_ci(values, stat=iqm, num_samples: int = 2000, confidence: float = 0.95, seed: int = 0):
+    """Percentile bootstrap over seeds (fixed RNG seed: the report is reproducible); None for one seed, whose
+    resamples are all the same value: no spread to show."""
     x = np.asarray(values, dtype=np.float64)
+    if len(x) < 2:
+        return None
     rng = np.random.default_rng(seed)
     stats = [stat(x[rng.integers(0, len(x), len(x))]) for _ in range(num_samples)]
     return float(np.quantile(stats, (1 - confidence) / 2)), float(np.quantile(stats, (1 + confidence) / 2))
 
 
-def difference_ci(a, b, num_samples: int = 2000, confidence: float = 0.95, seed: int = 0) -> tuple:
-    """Percentile bootstrap of mean(a) - mean(b), each group's seeds resampled on their own (fixed RNG seed)."""
+def difference_ci(a, b, num_samples: int = 2000, confidence: float = 0.95, seed: int = 0):
+    """Percentile bootstrap of mean(a) - mean(b), each group's seeds resampled on their own (fixed RNG seed); None
+    where either group has one seed."""
     a, b = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
+    if min(len(a), len(b)) < 2:
+        return None
     rng = np.random.default_rng(seed)
     diffs = [a[rng.integers(0, len(a), len(a))].mean() - b[rng.integers(0, len(b), len(b))].mean()
              for _ in range(num_samples)]
@@ -348,7 +354,7 @@ def summarize(runs: list) -> dict:
     normalized = [n for n in normalized if n is not None]
     score = normalized if len(normalized) == len(runs) else finals
     return {"n": len(runs), "return": mean_se(finals), "normalized": mean_se(normalized) if normalized else None,
-            "iqm": iqm(score), "iqm_ci": bootstrap_ci(score) if len(score) > 1 else None,  # one seed: no spread
+            "iqm": iqm(score), "iqm_ci": bootstrap_ci(score),
             "iqm_of": "normalized" if score is normalized else "return",
             "last_quarter": mean_se([last_quarter(r, score is normalized) for r in runs]),
             "worst": min(last_quarter(r, score is normalized, worst=True) for r in runs),
@@ -465,9 +471,8 @@ def trainer_gap(rows: dict) -> str:
     if None in final[0] + final[1]:
         return ""
     quarter = [[last_quarter(r, normalize=True) for r in g] for g in runs]
-    interval = "one seed: no interval"  # a bootstrap over one seed has no spread to show
-    if min(len(g) for g in runs) > 1:
-        interval = "95% bootstrap interval [{:+.3f}, {:+.3f}]".format(*difference_ci(*quarter))
+    ci = difference_ci(*quarter)
+    interval = "95% bootstrap interval [{:+.3f}, {:+.3f}]".format(*ci) if ci else "one seed: no interval"
     return (f"What the trainer adds, rile.py defaults minus the control ({len(runs[0])} and {len(runs[1])} seeds): "
             f"last quarter {np.mean(quarter[0]) - np.mean(quarter[1]):+.3f} ({interval}), "
             f"final {np.mean(final[0]) - np.mean(final[1]):+.3f}, normalized.")
@@ -608,12 +613,8 @@ def trainer_rows(conditions: list, runs: dict) -> list:
             cells = []
             for after in (0.75, 0.5):
                 x, y = ([last_quarter(r, normalize=True, after=after) for r in rs] for rs in (a, b))
-                gap = f"{np.mean(x) - np.mean(y):+.3f}"
-                if min(len(x), len(y)) < 2:  # a bootstrap over one seed has no spread to show
-                    cells.append(f"{gap} (one seed: no interval)")
-                    continue
-                lo, hi = difference_ci(x, y)
-                cells.append(f"{gap} [{lo:+.3f}, {hi:+.3f}]")
+                gap, ci = f"{np.mean(x) - np.mean(y):+.3f}", difference_ci(x, y)
+                cells.append(f"{gap} [{ci[0]:+.3f}, {ci[1]:+.3f}]" if ci else f"{gap} (one seed: no interval)")
             rows.append((c, f"{len(a)} and {len(b)} | " + " | ".join(cells)))
     return rows
 

@@ -39,6 +39,7 @@ def test_interquartile_mean():
 
 def test_bootstrap_interval():
     assert sweep.bootstrap_ci([3.0, 3.0, 3.0]) == (3.0, 3.0)
+    assert sweep.bootstrap_ci([3.0]) is None  # one seed: every resample is the same value, no spread to show
     x = [0.1, 0.5, 0.9, 0.7, 0.3]
     lo, hi = sweep.bootstrap_ci(x)
     assert lo < sweep.iqm(x) < hi and (lo, hi) == sweep.bootstrap_ci(x)  # reproducible
@@ -47,8 +48,10 @@ def test_bootstrap_interval():
 
 def test_difference_interval():
     """mean(a) - mean(b), each group resampled on its own: a = [0, 1] resamples to means 0, 0.5, 1 (p 1/4, 1/2, 1/4),
-    b = [0] stays 0, so the 95% interval runs from 0 to 1 and the point estimate 0.5 lies inside."""
-    assert sweep.difference_ci([0.0, 1.0], [0.0]) == (0.0, 1.0)
+    b = [0, 0] stays 0, so the 95% interval runs from 0 to 1 and the point estimate 0.5 lies inside. One seed on
+    either side: no interval."""
+    assert sweep.difference_ci([0.0, 1.0], [0.0, 0.0]) == (0.0, 1.0)
+    assert sweep.difference_ci([0.0, 1.0], [0.0]) is None and sweep.difference_ci([0.5], [0.0, 1.0]) is None
     assert sweep.difference_ci([2.0, 2.0], [0.5, 0.5, 0.5]) == (1.5, 1.5)
     assert sweep.difference_ci([0.3, 0.9, 0.4], [0.1, 0.2]) == sweep.difference_ci([0.3, 0.9, 0.4], [0.1, 0.2])
 
