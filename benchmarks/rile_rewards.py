@@ -2,7 +2,10 @@
 recent replay transitions, and at the absorbing state (with D there); then one deterministic episode of the student.
 For a run of the control (`--student-reward discriminator`), r_S is v(D) = 2D - 1.
 Answers "is falling worth less than living, and is walking worth more than standing?" for a run with
-`--termination-remedy absorbing`: staying in the absorbing state forever is worth r_abs / (1 - gamma).
+`--termination-remedy absorbing`: staying in the absorbing state forever is worth r_abs / (1 - gamma). Last, the
+student's critic against what r_S pays: Q at the episode's first step and at the absorbing state beside the discounted
+r_S that follows (where r_S is about 0, as under `--trainer-reward naive`, the values the student acts on are the
+critic's own).
 Both trainer observations: (s, a_S), and (s, s') of `--state-only --trainer-obs transition`.
 
     python benchmarks/rile_rewards.py runs/bench__Walker2d-v4__rile-absorbing__1 [--recent 20000]
@@ -92,8 +95,12 @@ def main():
     obs, _ = env.reset(seed=args.seed + 100_000)  # the first evaluation episode
     x0, rewards, done, steps = env.unwrapped.data.qpos[0], [], False, 0
     aug = lambda o: torch.as_tensor(np.append(o, 0.0), dtype=torch.float32)[None]  # a living state's indicator 0
+    critic = lambda o, a: student.qf(o, a).min(0).values.item()  # the value the student's actor climbs
     while not done:
         action = student.actor.act(obs, deterministic=True)
+        if steps == 0:
+            with torch.no_grad():
+                q_first = critic(aug(obs), torch.as_tensor(action)[None])
         next_obs, _, terminated, truncated, _ = env.step(action)
         with torch.no_grad():  # a fall goes into the absorbing state
             rewards.append(r_s(aug(obs), torch.as_tensor(action)[None], s_abs if terminated else aug(next_obs)).item())
@@ -102,6 +109,14 @@ def main():
     moved = env.unwrapped.data.qpos[0] - x0 if hasattr(env.unwrapped, "data") else float("nan")
     print(f"one deterministic episode: {steps} steps, {'fell' if terminated else 'time limit'}, moved {moved:.2f} "
           f"along x, r_S mean {np.mean(rewards):.3f} (min {np.min(rewards):.3f}, max {np.max(rewards):.3f})")
+    # what the student's critic expects against what r_S pays: on a reward of about 0 its values can be its own
+    paid = float(np.sum(args.gamma ** np.arange(steps) * np.array(rewards)))
+    paid += args.gamma**steps * r_abs * horizon if terminated else 0.0  # a fall: the absorbing state's loop after it
+    with torch.no_grad():
+        q_abs = critic(s_abs, torch.zeros(1, act_dim))
+    print(f"the student's critic: Q(s0, a0) {q_first:.3f} against this episode's discounted r_S {paid:.3f}; at the "
+          f"absorbing state {q_abs:.3f} against {r_abs * horizon:.3f} (Q also counts SAC's entropy bonus, alpha "
+          f"{student.log_alpha.exp().item():.2g}, none at the absorbing state)")
 
 
 if __name__ == "__main__":

@@ -775,6 +775,18 @@ def test_absorbing_states_end_to_end(run, tmp_path):
     disc.load_state_dict(ckpt["disc"])
     d_abs = disc.prob(torch.tensor([[0.0, 0.0, 0.0, 0.0, 1.0, 0.0]])).item()
     assert f"D at the absorbing state:                 {d_abs:7.3f};" in out and f"absorbing rows: {n_absorbing} of" in out
+    # ... and the student's critic against what r_S pays: its Q at (s_abs, 0) is the smaller of the twin critics there,
+    # and the episode's discounted r_S lies between its steps' smallest and largest r_S summed over the episode
+    qf = rile.TwinQ(4 + 1, 1, ckpt["config"]["hidden_dim"])
+    qf.load_state_dict(ckpt["student"]["qf"])
+    q_abs = qf(torch.tensor([[0.0, 0.0, 0.0, 0.0, 1.0]]), torch.zeros(1, 1)).min(0).values.item()
+    assert f"at the absorbing state {q_abs:.3f} against {r_abs * 100:.3f}" in out  # gamma 0.99: 1 / (1 - gamma) = 100
+    episode = out.split("one deterministic episode: ")[1]
+    steps, fell = int(episode.split(" steps")[0]), "fell" in episode.split("\n")[0]
+    low, high = (float(episode.split(k)[1].split(",")[0].split(")")[0]) for k in ("(min ", "max "))
+    paid = float(out.split("this episode's discounted r_S ")[1].split(";")[0])
+    span, tail = (1 - 0.99**steps) / 0.01, 0.99**steps * r_abs * 100 * fell
+    assert (low - 5e-4) * span + tail - 5e-4 <= paid <= (high + 5e-4) * span + tail + 5e-4, (low, high, steps, paid)
     # benchmarks/rile_follows_d.py: each of the run's 400 live pairs falls in one v(D) bin
     out = run("benchmarks/rile_follows_d.py", "runs/abs", "--recent", "100000").stdout
     live = ckpt["step"]  # one live row per env step; the absorbing loops are left out
