@@ -42,8 +42,9 @@ Implementation choices and deviations (the measurements behind each: docs/rile.m
    -0.019, HalfCheetah-v4 -0.015, Walker2d-v4 +0.008, every 95% interval across 0: no gain from the trainer shown.
 13. The trainer's reward is the paper's exp-difference, of its six (`--trainer-reward`). On Hopper-v4 (seed 1, 200k)
    difference and multiplication, under which r_S also follows v(D), ended within 0.03 of it (final 0.96 and 1.00
-   against 0.97, normalized), so it stays; naive and exp-naive, which a_T does not enter, paid r_S of about 0 and
-   taught nothing (final 0.05 and 0.32: a hopper that falls, one that stands still).
+   against 0.97, normalized), so it stays; sigmoid, a positive r_S rising with D, ended at 0.90; naive and exp-naive,
+   which a_T does not enter, paid r_S of about 0 and taught nothing (final 0.05 and 0.32: a hopper that falls, one
+   that stands still).
 
 Logged: charts/*, eval/{return,normalized_return}, losses/{student,trainer}_*, losses/disc_*, disc/*_prob, reward/*,
 trainer/{frozen,critic_loss_ema}; every --dynamics-freq steps the reward measures (r_S and D on demonstrations and
